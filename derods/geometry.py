@@ -1,0 +1,205 @@
+"""Centerline geometry of a discrete rod (Bergou et al. 2008, section 4.1).
+
+Conventions used throughout derods:
+
+* An open rod has ``n`` edges and ``n + 1`` vertices ``x_0 .. x_n``; a closed rod
+  has ``n`` edges and ``n`` vertices, edge ``j`` joining ``x_j`` and ``x_{(j+1) % n}``.
+* Edge ``j`` is ``e^j = x_{j+1} - x_j``.
+* A *joint* is a vertex where two edges meet and the rod can bend: the interior
+  vertices ``1 .. n-1`` of an open rod (``n - 1`` joints), every vertex of a
+  closed rod (``n`` joints). Joint ``k`` sits between edges ``prev`` and
+  ``next`` (:func:`joint_edge_index`) and its stencil is the three vertices
+  ``(prev vertex, joint vertex, next vertex)`` (:func:`joint_vertex_index`).
+* Every function accepts leading batch dimensions, so ``x`` of shape
+  ``(n_rods, n_vertices, 3)`` evaluates many rods of equal size in one call.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Floor on chi = 1 + cos(turning angle). Two edges folded back onto each other
+#: (turning angle -> pi) make the curvature binormal 2 tan(phi / 2) infinite;
+#: the floor keeps energies and forces finite for turning angles within about
+#: 1.4e-6 rad of pi, where the bending energy is already ~1e12 alpha / l.
+CHI_MIN = 1e-12
+
+
+def edges(x: np.ndarray, closed: bool) -> np.ndarray:
+    """Edge vectors e^j = x_{j+1} - x_j [m].
+
+    x: vertex positions [m], shape (..., n_vertices, 3).
+    Returns shape (..., n_edges, 3).
+    """
+    if closed:
+        return np.roll(x, -1, axis=-2) - x
+    return x[..., 1:, :] - x[..., :-1, :]
+
+
+def n_edges(n_vertices: int, closed: bool) -> int:
+    """Number of edges of a rod with ``n_vertices`` vertices."""
+    return n_vertices if closed else n_vertices - 1
+
+
+def n_joints(n_vertices: int, closed: bool) -> int:
+    """Number of bending joints of a rod with ``n_vertices`` vertices."""
+    return n_vertices if closed else n_vertices - 2
+
+
+def joint_edge_index(n_edges_: int, closed: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Indices (prev, next) of the two edges meeting at each joint, shape (n_joints,)."""
+    if closed:
+        nxt = np.arange(n_edges_)
+        return (nxt - 1) % n_edges_, nxt
+    return np.arange(n_edges_ - 1), np.arange(1, n_edges_)
+
+
+def joint_vertex_index(n_vertices: int, closed: bool) -> np.ndarray:
+    """Vertex indices of each joint's stencil (prev, joint, next), shape (n_joints, 3)."""
+    if closed:
+        k = np.arange(n_vertices)
+        return np.stack([(k - 1) % n_vertices, k, (k + 1) % n_vertices], axis=1)
+    k = np.arange(1, n_vertices - 1)
+    return np.stack([k - 1, k, k + 1], axis=1)
+
+
+def joint_pairs(e: np.ndarray, closed: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The edges (e_prev, e_next) meeting at each joint, each shape (..., n_joints, 3)."""
+    if closed:
+        return np.roll(e, 1, axis=-2), e
+    return e[..., :-1, :], e[..., 1:, :]
+
+
+def norm(v: np.ndarray) -> np.ndarray:
+    """Euclidean norm over the last axis."""
+    return np.sqrt(np.einsum("...i,...i->...", v, v))
+
+
+def voronoi_len(rest_edge_len: np.ndarray, closed: bool) -> np.ndarray:
+    """Vertex length l_k = |ebar^{prev}| + |ebar^{next}| of each joint [m].
+
+    This is *twice* the Voronoi length of the joint, as in Bergou et al. 2008:
+    with it, sum_k alpha |kb_k|^2 / l_k tends to (1/2) int alpha kappa^2 ds.
+
+    rest_edge_len: rest edge lengths [m], shape (..., n_edges).
+    Returns shape (..., n_joints).
+    """
+    if closed:
+        return np.roll(rest_edge_len, 1, axis=-1) + rest_edge_len
+    return rest_edge_len[..., :-1] + rest_edge_len[..., 1:]
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """Cross-product matrix [v]x with [v]x w = v x w; v shape (..., 3) -> (..., 3, 3)."""
+    z = np.zeros(v.shape[:-1])
+    return np.stack(
+        [
+            np.stack([z, -v[..., 2], v[..., 1]], axis=-1),
+            np.stack([v[..., 2], z, -v[..., 0]], axis=-1),
+            np.stack([-v[..., 1], v[..., 0], z], axis=-1),
+        ],
+        axis=-2,
+    )
+
+
+class JointGeometry:
+    """Per-joint quantities shared by every bending and twisting term.
+
+    Computed once per evaluation from the current edges; attributes, each with
+    leading shape (..., n_joints):
+
+    * ``la``, ``lb``: lengths of the previous and next edge [m].
+    * ``ta``, ``tb``: their unit tangents, shape (..., n_joints, 3).
+    * ``chi``: 1 + cos(turning angle), computed as |ta + tb|^2 / 2 so that it
+      stays accurate near a hairpin fold; floored at :data:`CHI_MIN`.
+    * ``kb``: curvature binormal 2 (e_prev x e_next) / (|e_prev||e_next| +
+      e_prev . e_next) (Bergou et al. 2008, eq. 1), dimensionless, |kb| = 2 tan(phi/2).
+    """
+
+    __slots__ = ("la", "lb", "ta", "tb", "chi", "kb", "_ja", "_jb")
+
+    def __init__(self, e_prev: np.ndarray, e_next: np.ndarray):
+        self.la = norm(e_prev)
+        self.lb = norm(e_next)
+        self.ta = e_prev / self.la[..., None]
+        self.tb = e_next / self.lb[..., None]
+        s = self.ta + self.tb
+        self.chi = np.maximum(0.5 * np.einsum("...i,...i->...", s, s), CHI_MIN)
+        self.kb = 2.0 * np.cross(self.ta, self.tb) / self.chi[..., None]
+        self._ja = None
+        self._jb = None
+
+    @property
+    def turning_angle(self) -> np.ndarray:
+        """Turning angle phi in [0, pi] [rad], shape (..., n_joints)."""
+        return 2.0 * np.arctan(0.5 * norm(self.kb))
+
+    def jacobians(self) -> tuple[np.ndarray, np.ndarray]:
+        """d kb / d e_prev and d kb / d e_next [1/m], each shape (..., n_joints, 3, 3).
+
+        d kb/d e_prev = (-2 [tb]x - kb (ta + tb)^T) / (|e_prev| chi),
+        d kb/d e_next = ( 2 [ta]x - kb (ta + tb)^T) / (|e_next| chi).
+        """
+        if self._ja is None:
+            s = self.ta + self.tb
+            outer = self.kb[..., :, None] * s[..., None, :]
+            self._ja = (-2.0 * skew(self.tb) - outer) / (self.la * self.chi)[..., None, None]
+            self._jb = (2.0 * skew(self.ta) - outer) / (self.lb * self.chi)[..., None, None]
+        return self._ja, self._jb
+
+    def jacobian_ab(self) -> np.ndarray:
+        """d kb / d (e_prev, e_next), shape (..., n_joints, 3, 6)."""
+        ja, jb = self.jacobians()
+        return np.concatenate([ja, jb], axis=-1)
+
+    def kb_hessian_dot(self, w: np.ndarray) -> np.ndarray:
+        """sum_k w_k d^2 kb_k / d(e_prev, e_next)^2 [1/m^2], shape (..., n_joints, 6, 6).
+
+        w: weights, shape (..., n_joints, 3). With s = w . (a x b),
+        D = |a||b| + a . b and phi = w . kb = 2 s / D (a = e_prev, b = e_next):
+        H = 2/D H_s - 2/D^2 (g_s g_D^T + g_D g_s^T) + 2 phi/D^2 g_D g_D^T - phi/D H_D.
+        """
+        la, lb = self.la[..., None], self.lb[..., None]
+        a, b = self.ta * la, self.tb * lb
+        d = (self.la * self.lb * self.chi)[..., None, None]
+        phi = np.einsum("...i,...i->...", w, self.kb)[..., None, None]
+        s = self.ta + self.tb
+        g_s = np.concatenate([np.cross(b, w), np.cross(w, a)], axis=-1)
+        g_d = np.concatenate([lb * s, la * s], axis=-1)
+        eye = np.eye(3)
+        shape = w.shape[:-1] + (6, 6)
+        h_s = np.zeros(shape)
+        ws = skew(w)
+        h_s[..., :3, 3:] = -ws
+        h_s[..., 3:, :3] = ws
+        h_d = np.empty(shape)
+        tata = self.ta[..., :, None] * self.ta[..., None, :]
+        tbtb = self.tb[..., :, None] * self.tb[..., None, :]
+        h_d[..., :3, :3] = (lb / la)[..., None] * (eye - tata)
+        h_d[..., 3:, 3:] = (la / lb)[..., None] * (eye - tbtb)
+        ab = eye + self.ta[..., :, None] * self.tb[..., None, :]
+        h_d[..., :3, 3:] = ab
+        h_d[..., 3:, :3] = np.swapaxes(ab, -1, -2)
+        gsd = g_s[..., :, None] * g_d[..., None, :]
+        return (
+            (2.0 / d) * h_s
+            - (2.0 / d**2) * (gsd + np.swapaxes(gsd, -1, -2))
+            + (2.0 * phi / d**2) * (g_d[..., :, None] * g_d[..., None, :])
+            - (phi / d) * h_d
+        )
+
+
+def curvature_binormal(x: np.ndarray, closed: bool) -> np.ndarray:
+    """Curvature binormal kb at every joint, shape (..., n_joints, 3), dimensionless.
+
+    x: vertex positions [m], shape (..., n_vertices, 3).
+    """
+    return JointGeometry(*joint_pairs(edges(x, closed), closed)).kb
+
+
+def turning_angles(x: np.ndarray, closed: bool) -> np.ndarray:
+    """Turning angle at every joint [rad], shape (..., n_joints).
+
+    x: vertex positions [m], shape (..., n_vertices, 3).
+    """
+    return JointGeometry(*joint_pairs(edges(x, closed), closed)).turning_angle

@@ -1,0 +1,294 @@
+"""A discrete elastic rod: frozen parameters, a separate state, and its energy.
+
+:class:`Material` holds the physical constants, :class:`Rod` the rest shape and
+everything derived from it that stays fixed during a run, :class:`RodState`
+what changes every step (positions, reference frames, twist angles). The rod
+decides once, from its parameters, which energy terms it needs
+(:attr:`Rod.active_terms`) and evaluates only those.
+
+A :class:`Rod` may describe many rods of equal vertex count at once: give
+``rest_x`` leading batch dimensions, e.g. shape (n_rods, n_vertices, 3).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from . import _checks, energy, frames, geometry, twist
+from .energy import Configuration, Derivatives
+from .twist import TwistBoundary
+
+
+@dataclass(frozen=True)
+class Material:
+    """Elastic and inertial constants of a rod with an elliptic (default: circular) section.
+
+    young: Young's modulus E [Pa].
+    density: rho [kg/m^3].
+    radius: semi-axis a of the section along the first material director m1 [m].
+    radius2: semi-axis b along m2 [m]; None for a circle (b = a).
+    shear: shear modulus G [Pa]; None to use young / (2 (1 + poisson)).
+    poisson: Poisson's ratio nu, used only when shear is None (-1 < nu <= 0.5).
+    """
+
+    young: float
+    density: float = 1000.0
+    radius: float = 0.01
+    radius2: float | None = None
+    shear: float | None = None
+    poisson: float = 0.5
+
+    def __post_init__(self):
+        _checks.positive("young", self.young, "Pa")
+        _checks.positive("density", self.density, "kg/m^3")
+        _checks.positive("radius", self.radius, "m")
+        if self.radius2 is not None:
+            _checks.positive("radius2", self.radius2, "m")
+        if self.shear is not None:
+            _checks.positive("shear", self.shear, "Pa")
+        elif not (-1.0 < self.poisson <= 0.5):
+            raise ValueError(f"poisson must be in (-1, 0.5], got {self.poisson!r}")
+
+    @property
+    def b(self) -> float:
+        return self.radius if self.radius2 is None else self.radius2
+
+    @property
+    def shear_modulus(self) -> float:
+        """G [Pa]."""
+        return self.shear if self.shear is not None else self.young / (2.0 * (1.0 + self.poisson))
+
+    @property
+    def area(self) -> float:
+        """Cross-section area A = pi a b [m^2]."""
+        return np.pi * self.radius * self.b
+
+    @property
+    def second_moments(self) -> tuple[float, float]:
+        """(I1, I2) [m^4]: about m1 (bending in the t-m2 plane) and about m2."""
+        a, b = self.radius, self.b
+        return np.pi * a * b**3 / 4.0, np.pi * a**3 * b / 4.0
+
+    @property
+    def bend_stiffness(self) -> tuple[float, float]:
+        """(B1, B2) = (E I1, E I2) [N m^2]."""
+        i1, i2 = self.second_moments
+        return self.young * i1, self.young * i2
+
+    @property
+    def alpha(self) -> float:
+        """Isotropic bending stiffness E I [N m^2] (the mean of B1 and B2)."""
+        return 0.5 * sum(self.bend_stiffness)
+
+    @property
+    def beta(self) -> float:
+        """Twisting stiffness G J [N m^2], J = pi a^3 b^3 / (a^2 + b^2) (2 I for a circle)."""
+        a, b = self.radius, self.b
+        return self.shear_modulus * np.pi * a**3 * b**3 / (a**2 + b**2)
+
+    @property
+    def isotropic(self) -> bool:
+        return self.radius2 is None or self.radius2 == self.radius
+
+    @property
+    def stretch_stiffness(self) -> float:
+        """E A [N]."""
+        return self.young * self.area
+
+    @property
+    def line_density(self) -> float:
+        """Mass per length rho A [kg/m]."""
+        return self.density * self.area
+
+
+@dataclass
+class RodState:
+    """What changes during a run.
+
+    x: vertex positions [m], shape (..., n_vertices, 3).
+    u: reference directors, perpendicular to ``t``, shape (..., n_edges, 3).
+    t: unit tangents at which ``u`` was last transported, shape (..., n_edges, 3).
+    theta: twist angles of the material frames [rad], shape (..., n_edges).
+    """
+
+    x: np.ndarray
+    u: np.ndarray
+    t: np.ndarray
+    theta: np.ndarray
+
+
+@dataclass(frozen=True)
+class Rod:
+    """Rest shape and material of a rod (or of a batch of rods of equal size).
+
+    rest_x: rest vertex positions [m], shape (..., n_vertices, 3).
+    material: the :class:`Material`.
+    closed: whether the rod is a ring.
+    boundary: how the material frame is held (:class:`derods.twist.TwistBoundary`).
+    rest_twist: extra natural twist per joint [rad] on top of the rest shape's own.
+    stretch_stiffness: k_s [N]; None for E A. Large values make the rod
+        inextensible within an implicit step.
+    u0: first reference director of the rest shape, shape (3,) or None.
+    natural_curvature: True (default) if ``rest_x`` is the stress-free shape;
+        False for a naturally straight rod that merely starts in the shape of
+        ``rest_x`` (a straight rod closed into a ring, as in Michell's test):
+        then ``rest_x`` sets only the rest edge lengths.
+    """
+
+    rest_x: np.ndarray
+    material: Material
+    closed: bool = False
+    boundary: TwistBoundary = TwistBoundary()
+    rest_twist: float | np.ndarray = 0.0
+    stretch_stiffness: float | None = None
+    u0: np.ndarray | None = None
+    natural_curvature: bool = True
+    rest_len: np.ndarray = field(init=False, repr=False)
+    vlen: np.ndarray = field(init=False, repr=False)
+    rest_u: np.ndarray = field(init=False, repr=False)
+    rest_curvature: np.ndarray | None = field(init=False, repr=False)
+    mbar: np.ndarray = field(init=False, repr=False)
+    active_terms: tuple[str, ...] = field(init=False)
+
+    def __post_init__(self):
+        x = _checks.points("rest_x", self.rest_x, self.closed)
+        if self.closed and self.boundary.kind != "ring":
+            raise ValueError("a closed rod needs boundary=TwistBoundary('ring', total_twist=...)")
+        if not self.closed and self.boundary.kind == "ring":
+            raise ValueError("TwistBoundary('ring') is for closed rods; pass closed=True")
+        if self.stretch_stiffness is not None:
+            _checks.positive("stretch_stiffness", self.stretch_stiffness, "N")
+        rest_len = geometry.norm(geometry.edges(x, self.closed))
+        u = frames.bishop_frames(x, self.closed, self.u0)
+        cfg = Configuration(x, self.closed, u, np.zeros(rest_len.shape))
+        # The rest shape's own reference twist (the holonomy at a ring's seam)
+        # is natural twist: a rod at rest carries no twisting moment.
+        mbar = np.broadcast_to(np.asarray(self.rest_twist, dtype=float), cfg.joint.la.shape)
+        straight = not self.natural_curvature or bool(np.all(geometry.norm(cfg.joint.kb) < 1e-9))
+        if self.natural_curvature:
+            mbar = mbar + cfg.reference_twist()
+        curvature = None
+        if not straight:
+            m1, m2 = cfg.material_frames()
+            curvature = frames.material_curvatures(cfg.joint.kb, m1, m2, self.closed)
+        terms = ["stretch"]
+        frame_bend = (not straight) or (not self.material.isotropic)
+        terms.append("bend_material" if frame_bend else "bend_isotropic")
+        if frame_bend or self.boundary.kind != "free":
+            terms.append("twist")
+        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
+        set_("rest_x", x)
+        set_("rest_len", rest_len)
+        set_("vlen", geometry.voronoi_len(rest_len, self.closed))
+        set_("rest_u", u)
+        set_("rest_curvature", curvature)
+        set_("mbar", mbar)
+        set_("active_terms", tuple(terms))
+
+    # -- sizes ---------------------------------------------------------------
+    @property
+    def n_vertices(self) -> int:
+        return self.rest_x.shape[-2]
+
+    @property
+    def n_edges(self) -> int:
+        return geometry.n_edges(self.n_vertices, self.closed)
+
+    @property
+    def length(self) -> np.ndarray:
+        """Rest length [m], shape (...)."""
+        return np.sum(self.rest_len, axis=-1)
+
+    @property
+    def ks(self) -> float:
+        return self.material.stretch_stiffness if self.stretch_stiffness is None else self.stretch_stiffness
+
+    @property
+    def vertex_mass(self) -> np.ndarray:
+        """Lumped masses [kg], shape (..., n_vertices): half of each adjacent edge's mass."""
+        me = self.material.line_density * self.rest_len
+        if self.closed:
+            return 0.5 * (me + np.roll(me, 1, axis=-1))
+        m = np.zeros(me.shape[:-1] + (self.n_vertices,))
+        m[..., :-1] += 0.5 * me
+        m[..., 1:] += 0.5 * me
+        return m
+
+    # -- state ---------------------------------------------------------------
+    def rest_state(self) -> RodState:
+        """The rod at rest: rest positions, Bishop frames, zero twist angles."""
+        t = frames.tangents(self.rest_x, self.closed)
+        return RodState(self.rest_x.copy(), self.rest_u.copy(), t, np.zeros(t.shape[:-1]))
+
+    def advance(self, state: RodState, x: np.ndarray) -> RodState:
+        """New state at positions ``x`` [m], shape (..., n_vertices, 3).
+
+        Transports the reference frames in time to the new tangents (Bergou et
+        al. 2010) and solves the quasistatic twist (Bergou et al. 2008, 4.4).
+        """
+        t = frames.tangents(x, self.closed)
+        u = frames.time_parallel_transport(state.u, state.t, t)
+        new = RodState(x, u, t, state.theta)
+        if "twist" in self.active_terms:
+            new.theta = self.solve_twist(new)
+        return new
+
+    def solve_twist(self, state: RodState) -> np.ndarray:
+        """Twist angles [rad] that make the energy stationary, shape (..., n_edges)."""
+        if "bend_material" not in self.active_terms:
+            ref = frames.reference_twist(state.u, state.t, self.closed)
+            theta, _ = twist.solve_isotropic(ref, self.vlen, self.material.beta, self.boundary, self.mbar)
+            return theta
+        if state.x.ndim > 2:
+            raise ValueError("the Newton twist solve takes one rod at a time; loop over the batch")
+
+        def theta_energy(theta, order):
+            cfg = Configuration(state.x, self.closed, state.u, theta)
+            return self._terms(cfg, order, psd=False, names=("bend_material", "twist"))
+
+        return twist.solve_newton(theta_energy, state.theta, self.closed, self.boundary)
+
+    # -- energy --------------------------------------------------------------
+    def _terms(self, cfg: Configuration, order: int, psd: bool, names) -> Derivatives:
+        mat = self.material
+        out = None
+        for name in names:
+            if name == "stretch":
+                d = energy.stretch(cfg, self.ks, self.rest_len, order, psd)
+            elif name == "bend_isotropic":
+                d = energy.bend_isotropic(cfg, mat.alpha, self.vlen, order, psd)
+            elif name == "bend_material":
+                d = energy.bend_material(cfg, np.array(mat.bend_stiffness), self.vlen,
+                                         self.rest_curvature, order, psd)
+            elif name == "twist":
+                off = self.boundary.seam_offset(self.vlen.shape[-1])
+                d = energy.twist(cfg, mat.beta, self.vlen, self.mbar, off, order, psd)
+            else:  # pragma: no cover - names come from active_terms
+                raise KeyError(name)
+            out = d if out is None else out + d
+        return out
+
+    def derivatives(self, state: RodState, order: int = 1, psd: bool = False,
+                    terms: tuple[str, ...] | None = None) -> Derivatives:
+        """Energy [J], gradients and (order=2) Hessian of the active terms at ``state``.
+
+        ``state`` must have adapted frames (from :meth:`rest_state` or
+        :meth:`advance`). psd: positive semi-definite Hessian for implicit steps.
+        terms: a subset of :attr:`active_terms` (default: all of them).
+        """
+        names = self.active_terms if terms is None else terms
+        unknown = set(names) - set(self.active_terms)
+        if unknown:
+            raise ValueError(f"terms {sorted(unknown)} are not active for this rod; active: {self.active_terms}")
+        cfg = Configuration(state.x, self.closed, state.u, state.theta)
+        return self._terms(cfg, order, psd, names)
+
+    def energy(self, state: RodState) -> np.ndarray:
+        """Total elastic energy [J], shape (...)."""
+        return self.derivatives(state, order=0).energy
+
+    def with_boundary(self, boundary: TwistBoundary) -> "Rod":
+        """The same rod held differently."""
+        return replace(self, boundary=boundary)
