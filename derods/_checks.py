@@ -11,9 +11,8 @@ def positive(name: str, value, unit: str = "") -> np.ndarray | float:
     if arr.size == 0 or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
         bad = arr if arr.ndim == 0 else arr[~(np.isfinite(arr) & (arr > 0))][:3]
         unit_txt = f" [{unit}]" if unit else ""
-        raise ValueError(
-            f"{name} must be finite and > 0{unit_txt}, got {np.array2string(np.asarray(bad))}"
-        )
+        got = repr(float(bad)) if bad.ndim == 0 else f"entries {bad.tolist()}"
+        raise ValueError(f"{name} must be finite and > 0{unit_txt}, got {got}")
     return float(arr) if arr.ndim == 0 else arr
 
 
@@ -36,8 +35,8 @@ def points(name: str, x, closed: bool = False) -> np.ndarray:
     if x.ndim < 2 or x.shape[-1] != 3:
         raise ValueError(f"{name} must have shape (..., n_vertices, 3), got {x.shape}")
     if not np.all(np.isfinite(x)):
-        idx = np.argwhere(~np.isfinite(x))[0]
-        raise ValueError(f"{name} has a NaN or infinite coordinate at index {tuple(idx)}")
+        idx = tuple(int(i) for i in np.argwhere(~np.isfinite(x))[0])
+        raise ValueError(f"{name} has a NaN or infinite coordinate at index {idx}")
     nv = x.shape[-2]
     n_edges = nv if closed else nv - 1
     need = 3 if closed else 2
