@@ -119,6 +119,26 @@ class RodState:
     theta: np.ndarray
 
 
+@dataclass
+class StepTerms:
+    """What one implicit step needs from a rod, from :meth:`Rod.step_terms`.
+
+    state: the new state (frames transported, twist solved).
+    energy: elastic energy [J], shape (...).
+    grad_x: dE/dx [N], shape (..., n_vertices, 3) (the elastic force is minus this).
+    hessian_banded: positive semi-definite Hessian of stretch + bending in the lower
+        banded form of :func:`scipy.linalg.solveh_banded`, shape (..., 9, 3 n_vertices).
+    twist: the reduced twist term (:class:`derods.twist.ReducedTwist`), whose
+        Hessian c g g^T is a rank-one update of ``hessian_banded``; None without twist.
+    """
+
+    state: RodState
+    energy: np.ndarray
+    grad_x: np.ndarray
+    hessian_banded: np.ndarray
+    twist: twist.ReducedTwist | None
+
+
 @dataclass(frozen=True)
 class Rod:
     """Rest shape and material of a rod (or of a batch of rods of equal size).
@@ -284,6 +304,79 @@ class Rod:
             raise ValueError(f"terms {sorted(unknown)} are not active for this rod; active: {self.active_terms}")
         cfg = Configuration(state.x, self.closed, state.u, state.theta)
         return self._terms(cfg, order, psd, names)
+
+    @property
+    def has_kernel(self) -> bool:
+        """True if :meth:`step_terms` runs in the compiled kernel (isotropic, naturally
+        straight, open rods)."""
+        return not self.closed and "bend_material" not in self.active_terms
+
+    def step_terms(self, state: RodState, x: np.ndarray, use_kernel: bool | None = None) -> StepTerms:
+        """Advance to positions ``x`` and evaluate what an implicit step needs.
+
+        state: the previous state (its frames are transported to ``x``).
+        x: new vertex positions [m], shape (..., n_vertices, 3).
+        use_kernel: force (True) or forbid (False) the compiled kernel; None picks it
+            whenever :attr:`has_kernel`. Both give the same numbers (to round-off).
+        """
+        if use_kernel is None:
+            use_kernel = self.has_kernel
+        if use_kernel and not self.has_kernel:
+            raise ValueError("the compiled kernel covers isotropic, naturally straight, open rods only")
+        if use_kernel:
+            return self._step_terms_kernel(state, x)
+        if "bend_material" in self.active_terms:
+            raise NotImplementedError(
+                "step_terms for anisotropic or naturally curved rods needs the reduced Hessian "
+                "of the Newton twist solve; use derivatives() meanwhile"
+            )
+        t = frames.tangents(x, self.closed)
+        u = frames.time_parallel_transport(state.u, state.t, t)
+        cfg = Configuration(x, self.closed, u, state.theta)
+        red = None
+        theta = state.theta
+        names = tuple(n for n in self.active_terms if n != "twist")
+        d = self._terms(cfg, 2, True, names)
+        grad, e = d.grad_x, d.energy
+        if "twist" in self.active_terms:
+            red = twist.reduce_isotropic(cfg, self.vlen, self.material.beta, self.boundary, self.mbar)
+            theta = red.theta
+            grad = grad + red.grad_x
+            e = e + red.energy
+        if self.closed:
+            raise NotImplementedError("closed rods have no banded Hessian; use derivatives()")
+        return StepTerms(RodState(x, u, t, theta), e, grad, d.hessian.xx_banded(), red)
+
+    def _step_terms_kernel(self, state: RodState, x: np.ndarray) -> StepTerms:
+        from . import _kernels
+
+        batch = x.shape[:-2]
+        nv, ne, nj = self.n_vertices, self.n_edges, self.n_vertices - 2
+        flat = lambda a, *tail: np.ascontiguousarray(np.broadcast_to(a, batch + tail)).reshape((-1,) + tail)  # noqa: E731
+        xs = flat(x, nv, 3)
+        n = xs.shape[0]
+        u, t, theta = np.empty((n, ne, 3)), np.empty((n, ne, 3)), np.empty((n, ne))
+        grad, g_tw = np.empty((n, nv, 3)), np.empty((n, nv, 3))
+        ab = np.empty((n, 9, 3 * nv))
+        energy, lam, coef = np.empty(n), np.empty(n), np.empty(n)
+        bd = self.boundary
+        clamped = bd.kind == "clamped"
+        anchor_last = bd.kind == "free" and bd.theta_first is None and bd.theta_last is not None
+        _kernels.step_batch(
+            xs, flat(state.u, ne, 3), flat(state.t, ne, 3), flat(self.rest_len, ne), flat(self.vlen, nj),
+            float(self.ks), float(self.material.alpha), float(self.material.beta), flat(self.mbar, nj),
+            clamped, anchor_last, float(bd.theta_first or 0.0), float(bd.theta_last or 0.0),
+            u, t, theta, grad, ab, g_tw, energy, lam, coef)
+        shape = lambda a: a.reshape(batch + a.shape[1:])  # noqa: E731
+        red = None
+        if "twist" not in self.active_terms:
+            # No twist term: theta is left as it was, as on the numpy path.
+            theta = flat(state.theta, ne)
+        else:
+            e_tw = 0.5 * lam**2 / coef if clamped else np.zeros(n)  # lam^2 sum(l/beta) / 4
+            red = twist.ReducedTwist(shape(theta), shape(lam), shape(e_tw), shape(g_tw), shape(coef))
+        return StepTerms(RodState(x, shape(u), shape(t), shape(theta)), shape(energy), shape(grad),
+                         shape(ab), red)
 
     def energy(self, state: RodState) -> np.ndarray:
         """Total elastic energy [J], shape (...)."""

@@ -184,3 +184,51 @@ def solve_newton(energy: Callable[[np.ndarray, int], Derivatives], theta0: np.nd
         theta = trial
         mu *= 0.1 if mu > 1e-12 else 0.0
     return theta
+
+
+@dataclass
+class ReducedTwist:
+    """The twist term with the twist angles eliminated (isotropic, naturally straight rod).
+
+    E*(x) = min_theta E_twist = (sum_k d_k)^2 / sum_k (l_k / beta_k), a function of the
+    centerline through the reference twist alone. Its gradient is lam * g and its
+    Hessian c g g^T + lam sum_k Hess(ref_twist_k): a rank-one update of a banded
+    matrix, which a banded solve handles with the Sherman-Morrison formula.
+
+    theta: twist angles [rad], shape (..., n_edges).
+    lam: twisting moment [N m], shape (...).
+    energy: E* [J], shape (...).
+    g: sum_k d(ref_twist_k)/dx [1/m], shape (..., n_vertices, 3).
+    c: 2 / sum_k (l_k / beta_k) [N m], shape (...); zero when an end is free.
+    """
+
+    theta: np.ndarray
+    lam: np.ndarray
+    energy: np.ndarray
+    g: np.ndarray
+    c: np.ndarray
+
+    @property
+    def grad_x(self) -> np.ndarray:
+        """dE*/dx [N], shape (..., n_vertices, 3)."""
+        return self.lam[..., None, None] * self.g
+
+
+def reduce_isotropic(cfg: Configuration, vlen: np.ndarray, beta, boundary: TwistBoundary,
+                     rest_twist=0.0) -> ReducedTwist:
+    """Solve the quasistatic twist in closed form and return the reduced twist term.
+
+    cfg: current configuration with adapted reference frames ``cfg.u``.
+    vlen: vertex lengths l_k [m], shape (..., n_joints).
+    beta: twisting stiffness G J [N m^2]; rest_twist: mbar [rad].
+    """
+    from .energy import _ab_to_x_vec, reference_twist_gradient
+    from .stencil import scatter_joint_x
+
+    ref = cfg.reference_twist()
+    theta, lam = solve_isotropic(ref, vlen, beta, boundary, rest_twist)
+    compliance = np.sum(np.broadcast_to(vlen / beta, ref.shape), axis=-1)
+    c = np.zeros(ref.shape[:-1]) if boundary.kind == "free" else 2.0 / compliance
+    energy = 0.25 * lam**2 * compliance
+    g = scatter_joint_x(_ab_to_x_vec(reference_twist_gradient(cfg.joint)), cfg.n_vertices, cfg.closed)
+    return ReducedTwist(theta, lam, energy, g, c)

@@ -1,0 +1,207 @@
+"""Compiled (numba) kernel for the per-step work of isotropic open rods.
+
+One call does, for every rod of a batch, what the numpy path of
+:meth:`derods.rod.Rod.step_terms` does with several dozen array operations:
+transport the reference frames in time, solve the quasistatic twist, and
+evaluate the gradient and the positive semi-definite banded Hessian of
+stretch + isotropic bending + the reduced twist. At a few hundred vertices a
+numpy call costs more in overhead than in arithmetic; this kernel removes
+that overhead. tests/test_kernels.py checks it against the numpy path, which
+in turn is checked against finite differences.
+
+Formulas and conventions are those of :mod:`derods.energy`,
+:mod:`derods.frames` and :mod:`derods.twist`; the lower banded layout is that
+of :mod:`derods.stencil`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from .geometry import CHI_MIN
+
+
+@nb.njit(cache=True, inline="always")
+def _add(ab, row, col, v):
+    # Lower banded storage: H[row, col] (row >= col) lives at ab[row - col, col].
+    if row >= col:
+        ab[row - col, col] += v
+
+
+@nb.njit(cache=True)
+def _step_one(x, u_prev, t_prev, rest_len, vlen, ks, alpha, beta, mbar, clamped, anchor_last,
+              theta_first, theta_last, u, t, theta, grad, ab, g_tw, ref, le, ja, jb, hab):
+    nv = x.shape[0]
+    ne = nv - 1
+    nj = nv - 2
+    energy = 0.0
+    grad[:] = 0.0
+    ab[:] = 0.0
+    g_tw[:] = 0.0
+    # Edges: tangents, time-parallel transport of the reference frames, stretching.
+    for j in range(ne):
+        e0 = x[j + 1, 0] - x[j, 0]
+        e1 = x[j + 1, 1] - x[j, 1]
+        e2 = x[j + 1, 2] - x[j, 2]
+        lj = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+        le[j] = lj
+        c0, c1, c2 = e0 / lj, e1 / lj, e2 / lj
+        t[j, 0], t[j, 1], t[j, 2] = c0, c1, c2
+        p0, p1, p2 = t_prev[j, 0], t_prev[j, 1], t_prev[j, 2]
+        k0, k1, k2 = p1 * c2 - p2 * c1, p2 * c0 - p0 * c2, p0 * c1 - p1 * c0
+        s0, s1, s2 = p0 + c0, p1 + c1, p2 + c2
+        opc = max(0.5 * (s0 * s0 + s1 * s1 + s2 * s2), CHI_MIN)
+        cc = opc - 1.0
+        w0, w1, w2 = u_prev[j, 0], u_prev[j, 1], u_prev[j, 2]
+        kw = (k0 * w0 + k1 * w1 + k2 * w2) / opc
+        v0 = cc * w0 + (k1 * w2 - k2 * w1) + k0 * kw
+        v1 = cc * w1 + (k2 * w0 - k0 * w2) + k1 * kw
+        v2 = cc * w2 + (k0 * w1 - k1 * w0) + k2 * kw
+        vt = v0 * c0 + v1 * c1 + v2 * c2
+        v0, v1, v2 = v0 - vt * c0, v1 - vt * c1, v2 - vt * c2
+        nvv = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+        u[j, 0], u[j, 1], u[j, 2] = v0 / nvv, v1 / nvv, v2 / nvv
+        strain = lj / rest_len[j] - 1.0
+        energy += 0.5 * ks * rest_len[j] * strain * strain
+        ten = ks * strain
+        for a in range(3):
+            grad[j, a] -= ten * t[j, a]
+            grad[j + 1, a] += ten * t[j, a]
+        kt = ks / rest_len[j]
+        kg = max(ten, 0.0) / lj
+        for r in range(3):
+            for c in range(3):
+                h = (kt - kg) * t[j, r] * t[j, c] + (kg if r == c else 0.0)
+                _add(ab, 3 * j + r, 3 * j + c, h)
+                _add(ab, 3 * j + 3 + r, 3 * j + 3 + c, h)
+                _add(ab, 3 * j + 3 + r, 3 * j + c, -h)
+    # Joints: isotropic bending and the reference twist with its gradient.
+    for k in range(nj):
+        a0, a1, a2 = t[k, 0], t[k, 1], t[k, 2]
+        b0, b1, b2 = t[k + 1, 0], t[k + 1, 1], t[k + 1, 2]
+        la, lb = le[k], le[k + 1]
+        s0, s1, s2 = a0 + b0, a1 + b1, a2 + b2
+        chi = max(0.5 * (s0 * s0 + s1 * s1 + s2 * s2), CHI_MIN)
+        kb0 = 2.0 * (a1 * b2 - a2 * b1) / chi
+        kb1 = 2.0 * (a2 * b0 - a0 * b2) / chi
+        kb2 = 2.0 * (a0 * b1 - a1 * b0) / chi
+        # ja = (-2 [tb]x - kb s^T) / (la chi), jb = (2 [ta]x - kb s^T) / (lb chi)
+        fa = 1.0 / (la * chi)
+        fb = 1.0 / (lb * chi)
+        kbv = (kb0, kb1, kb2)
+        sv = (s0, s1, s2)
+        for r in range(3):
+            for c in range(3):
+                ja[r, c] = -kbv[r] * sv[c] * fa
+                jb[r, c] = -kbv[r] * sv[c] * fb
+        ja[0, 1] += 2.0 * b2 * fa
+        ja[0, 2] -= 2.0 * b1 * fa
+        ja[1, 0] -= 2.0 * b2 * fa
+        ja[1, 2] += 2.0 * b0 * fa
+        ja[2, 0] += 2.0 * b1 * fa
+        ja[2, 1] -= 2.0 * b0 * fa
+        jb[0, 1] -= 2.0 * a2 * fb
+        jb[0, 2] += 2.0 * a1 * fb
+        jb[1, 0] += 2.0 * a2 * fb
+        jb[1, 2] -= 2.0 * a0 * fb
+        jb[2, 0] -= 2.0 * a1 * fb
+        jb[2, 1] += 2.0 * a0 * fb
+        cb = alpha / vlen[k]
+        energy += cb * (kb0 * kb0 + kb1 * kb1 + kb2 * kb2)
+        two_c = 2.0 * cb
+        for c in range(3):
+            ga = two_c * (ja[0, c] * kb0 + ja[1, c] * kb1 + ja[2, c] * kb2)
+            gb = two_c * (jb[0, c] * kb0 + jb[1, c] * kb1 + jb[2, c] * kb2)
+            grad[k, c] -= ga
+            grad[k + 1, c] += ga - gb
+            grad[k + 2, c] += gb
+        # Gauss-Newton Hessian 2c J^T J over (a, b), mapped to the three vertices.
+        for r in range(6):
+            for c in range(6):
+                acc = 0.0
+                for i in range(3):
+                    jr = ja[i, r] if r < 3 else jb[i, r - 3]
+                    jc = ja[i, c] if c < 3 else jb[i, c - 3]
+                    acc += jr * jc
+                hab[r, c] = two_c * acc
+        p3, m3, n3 = 3 * k, 3 * k + 3, 3 * k + 6
+        for r in range(3):
+            for c in range(3):
+                haa, hab_, hba, hbb = hab[r, c], hab[r, c + 3], hab[r + 3, c], hab[r + 3, c + 3]
+                _add(ab, p3 + r, p3 + c, haa)
+                _add(ab, m3 + r, m3 + c, haa - hab_ - hba + hbb)
+                _add(ab, n3 + r, n3 + c, hbb)
+                _add(ab, m3 + r, p3 + c, hba - haa)
+                _add(ab, n3 + r, m3 + c, hba - hbb)
+                _add(ab, n3 + r, p3 + c, -hba)
+        # Reference twist: angle from the transport of u^k (ta -> tb) to u^{k+1} about tb.
+        w0, w1, w2 = u[k, 0], u[k, 1], u[k, 2]
+        q0, q1, q2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+        cc = chi - 1.0
+        kw = (q0 * w0 + q1 * w1 + q2 * w2) / chi
+        v0 = cc * w0 + (q1 * w2 - q2 * w1) + q0 * kw
+        v1 = cc * w1 + (q2 * w0 - q0 * w2) + q1 * kw
+        v2 = cc * w2 + (q0 * w1 - q1 * w0) + q2 * kw
+        z0, z1, z2 = u[k + 1, 0], u[k + 1, 1], u[k + 1, 2]
+        sin_ = (v1 * z2 - v2 * z1) * b0 + (v2 * z0 - v0 * z2) * b1 + (v0 * z1 - v1 * z0) * b2
+        cos_ = v0 * z0 + v1 * z1 + v2 * z2
+        ref[k] = math.atan2(sin_, cos_)
+        ia, ib = 0.5 / la, 0.5 / lb
+        g_tw[k, 0] -= kb0 * ia
+        g_tw[k, 1] -= kb1 * ia
+        g_tw[k, 2] -= kb2 * ia
+        g_tw[k + 1, 0] += kb0 * (ia - ib)
+        g_tw[k + 1, 1] += kb1 * (ia - ib)
+        g_tw[k + 1, 2] += kb2 * (ia - ib)
+        g_tw[k + 2, 0] += kb0 * ib
+        g_tw[k + 2, 1] += kb1 * ib
+        g_tw[k + 2, 2] += kb2 * ib
+    # Quasistatic twist (closed form, see derods.twist.solve_isotropic).
+    lam = 0.0
+    coef = 0.0
+    if clamped:
+        excess = theta_last - theta_first
+        compliance = 0.0
+        for k in range(nj):
+            excess += ref[k] - mbar[k]
+            compliance += vlen[k] / beta
+        lam = 2.0 * excess / compliance
+        coef = 2.0 / compliance
+        energy += 0.25 * lam * lam * compliance
+        theta[0] = theta_first
+        for k in range(nj):
+            theta[k + 1] = theta[k] + 0.5 * lam * vlen[k] / beta + mbar[k] - ref[k]
+        for i in range(nv):
+            for a in range(3):
+                grad[i, a] += lam * g_tw[i, a]
+    elif anchor_last:
+        theta[ne - 1] = theta_last
+        for k in range(nj - 1, -1, -1):
+            theta[k] = theta[k + 1] - (mbar[k] - ref[k])
+    else:
+        theta[0] = theta_first
+        for k in range(nj):
+            theta[k + 1] = theta[k] + mbar[k] - ref[k]
+    return energy, lam, coef
+
+
+@nb.njit(cache=True)
+def step_batch(x, u_prev, t_prev, rest_len, vlen, ks, alpha, beta, mbar, clamped, anchor_last,
+               theta_first, theta_last, u, t, theta, grad, ab, g_tw, energy, lam, coef):
+    """Run :func:`_step_one` over rods stacked on axis 0 (outputs filled in place)."""
+    n_rods, nv = x.shape[0], x.shape[1]
+    ref = np.empty(nv - 2)
+    le = np.empty(nv - 1)
+    ja = np.empty((3, 3))
+    jb = np.empty((3, 3))
+    hab = np.empty((6, 6))
+    for i in range(n_rods):
+        e, lm, cf = _step_one(x[i], u_prev[i], t_prev[i], rest_len[i], vlen[i], ks, alpha, beta,
+                              mbar[i], clamped, anchor_last, theta_first, theta_last,
+                              u[i], t[i], theta[i], grad[i], ab[i], g_tw[i], ref, le, ja, jb, hab)
+        energy[i] = e
+        lam[i] = lm
+        coef[i] = cf

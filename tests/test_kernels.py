@@ -1,0 +1,75 @@
+"""The compiled kernel of derods/_kernels.py against the numpy path it replaces."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import derods
+from derods import shapes
+from derods.twist import TwistBoundary
+
+MAT = derods.Material(young=1e8, radius=0.01)
+# The kernel evaluates the same formulas in another order: agreement to round-off.
+RTOL = 1e-12
+
+
+def bent(rod, rng, amp=0.1):
+    s = np.linspace(0, 1, rod.n_vertices)
+    x = rod.rest_x + amp * np.stack([0 * s, np.sin(3 * s), 1 - np.cos(2 * s)], axis=-1)
+    return x + rng.normal(scale=0.01, size=x.shape)
+
+
+BOUNDARIES = [
+    TwistBoundary(),
+    TwistBoundary("free", theta_last=0.3),
+    TwistBoundary("free", theta_first=-0.2),
+    TwistBoundary("clamped", 0.1, 4.0),
+]
+
+
+@pytest.mark.parametrize("boundary", BOUNDARIES)
+@pytest.mark.parametrize("batch", [(), (4,), (2, 3)])
+def test_kernel_matches_numpy(boundary, batch):
+    rng = np.random.default_rng(len(batch))
+    rest = shapes.straight(1.0, 15)
+    rest = np.broadcast_to(rest, batch + rest.shape).copy()
+    rod = derods.Rod(rest, MAT, boundary=boundary, rest_twist=0.05)
+    assert rod.has_kernel
+    state = rod.rest_state()
+    x = bent(rod, rng)
+    a = rod.step_terms(state, x, use_kernel=True)
+    b = rod.step_terms(state, x, use_kernel=False)
+    for name in ("energy", "grad_x", "hessian_banded"):
+        va, vb = getattr(a, name), getattr(b, name)
+        assert va.shape == vb.shape
+        np.testing.assert_allclose(va, vb, rtol=RTOL, atol=RTOL * np.abs(vb).max(), err_msg=name)
+    for name in ("u", "t", "theta"):
+        np.testing.assert_allclose(getattr(a.state, name), getattr(b.state, name), atol=1e-12, err_msg=name)
+    if b.twist is None:
+        assert a.twist is None
+    else:
+        for name in ("theta", "lam", "energy", "g", "c"):
+            np.testing.assert_allclose(getattr(a.twist, name), getattr(b.twist, name),
+                                       rtol=RTOL, atol=1e-12, err_msg=name)
+
+
+def test_kernel_steps_chain_like_advance():
+    """Stepping twice through the kernel carries the frames like Rod.advance."""
+    rng = np.random.default_rng(7)
+    rod = derods.Rod(shapes.straight(1.0, 12), MAT, boundary=TwistBoundary("clamped", 0.0, 2.0))
+    s_k = s_n = rod.rest_state()
+    for amp in (0.05, 0.1, 0.15):
+        x = bent(rod, rng, amp)
+        s_k = rod.step_terms(s_k, x, use_kernel=True).state
+        s_n = rod.advance(s_n, x)
+    np.testing.assert_allclose(s_k.u, s_n.u, atol=1e-12)
+    np.testing.assert_allclose(s_k.theta, s_n.theta, atol=1e-12)
+
+
+def test_kernel_refuses_rods_it_does_not_cover():
+    ring = derods.Rod(shapes.circle(0.2, 12), MAT, closed=True, natural_curvature=False,
+                      boundary=TwistBoundary("ring", total_twist=1.0))
+    assert not ring.has_kernel
+    with pytest.raises(ValueError, match="compiled kernel covers"):
+        ring.step_terms(ring.rest_state(), ring.rest_x, use_kernel=True)
