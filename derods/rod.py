@@ -21,6 +21,11 @@ from .energy import Configuration, Derivatives
 from .twist import TwistBoundary
 
 
+#: Young's modulus [Pa] of the stretching term of an "inextensible" rod: the
+#: weight of a 1 m rod of density 1000 kg/m^3 then strains it by about 1e-6.
+INEXTENSIBLE_MODULUS = 1e10
+
+
 @dataclass(frozen=True)
 class Material:
     """Elastic and inertial constants of a rod with an elliptic (default: circular) section.
@@ -148,8 +153,10 @@ class Rod:
     closed: whether the rod is a ring.
     boundary: how the material frame is held (:class:`derods.twist.TwistBoundary`).
     rest_twist: extra natural twist per joint [rad] on top of the rest shape's own.
-    stretch_stiffness: k_s [N]; None for E A. Large values make the rod
-        inextensible within an implicit step.
+    stretch_stiffness: k_s [N]. None (default) makes the rod practically
+        inextensible: k_s = A max(E, INEXTENSIBLE_MODULUS), which the implicit
+        step of the MuJoCo coupling keeps stable at any time step. Pass E A
+        (``material.stretch_stiffness``) for a physically extensible rod.
     u0: first reference director of the rest shape, shape (3,) or None.
     natural_curvature: True (default) if ``rest_x`` is the stress-free shape;
         False for a naturally straight rod that merely starts in the shape of
@@ -223,7 +230,10 @@ class Rod:
 
     @property
     def ks(self) -> float:
-        return self.material.stretch_stiffness if self.stretch_stiffness is None else self.stretch_stiffness
+        """Stretching stiffness k_s [N]."""
+        if self.stretch_stiffness is not None:
+            return self.stretch_stiffness
+        return self.material.area * max(self.material.young, INEXTENSIBLE_MODULUS)
 
     @property
     def vertex_mass(self) -> np.ndarray:

@@ -1,0 +1,444 @@
+"""Rods in MuJoCo: one body per vertex, driven by DER forces every step.
+
+Each rod becomes a chain of MuJoCo bodies, one per vertex, each with three
+world-aligned slide joints (none for a vertex held by a pin or a clamp), and
+a 1D flex over those bodies with no MuJoCo elasticity: the flex only makes the
+edges collide as capsules of the rod radius (thin obstacles cannot slip
+between vertices). Everything elastic comes from derods.
+
+Every step, for all rods at once:
+
+1. read vertex positions ``xpos`` and velocities ``qvel``;
+2. transport the reference frames, solve the quasistatic twist and evaluate
+   the DER forces and their PSD Hessian (:meth:`derods.Rod.step_terms`);
+3. implicit mode: solve the linearly implicit backward Euler step
+   (:mod:`derods.implicit`) with gravity, the user's ``xfrc_applied`` and the
+   previous step's constraint (contact) force, and apply the force that makes
+   MuJoCo's velocity update reproduce it, f = M dv / h - (gravity + contact +
+   user); explicit mode: apply the DER force itself;
+4. ``mj_step``: MuJoCo integrates, and handles contact, friction and the
+   rest of the scene.
+
+derods writes its forces into ``qfrc_applied`` of the rod dofs and leaves
+``xfrc_applied`` to the user and the interactive viewer (whose mouse pulls
+enter the implicit step as external forces).
+
+Damping has a physical meaning: ``mass_damping`` a [1/s] is a drag -a m v on
+every vertex (as in a viscous medium; every mode decays at rate a/2);
+``stiffness_damping`` b [s] is internal (Kelvin-Voigt-like) viscosity -b K v,
+which damps a mode of angular frequency w at rate b w^2 / 2. Backward Euler
+adds numerical damping of its own at large steps.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from . import frames
+from .implicit import ImplicitSolver, restrict_band
+from .rod import Rod, RodState
+from .twist import TwistBoundary
+
+END_KINDS = ("free", "pin", "clamp")
+MODES = ("auto", "implicit", "explicit")
+
+#: Divergence thresholds: an edge stretched beyond this strain, or a vertex faster
+#: than this [m/s], means the step has lost the solution.
+MAX_STRAIN = 0.5
+MAX_SPEED = 1e3
+
+
+class DivergenceError(RuntimeError):
+    """The simulation lost the solution; the message names the step, the rod and a fix."""
+
+
+@dataclass(frozen=True)
+class ContactParams:
+    """How rods touch the scene.
+
+    friction: sliding friction coefficient. solref: MuJoCo (timeconst [s],
+    dampratio); a time constant near 2 dt keeps fast impacts from sinking in.
+    condim: contact dimensionality (1 frictionless, 3 sliding friction, 4 or 6
+    adds torsional / rolling). self_collision: edges of a rod collide with its
+    other edges (neighbours excluded); off by default.
+    """
+
+    friction: float = 1.0
+    solref: tuple[float, float] = (0.005, 1.0)
+    condim: int = 3
+    self_collision: bool = False
+
+
+@dataclass
+class _Slot:
+    """Bookkeeping of one rod inside the world."""
+
+    name: str
+    rod: Rod
+    x0: np.ndarray
+    start: str
+    end: str
+    rgba: tuple
+    fixed: np.ndarray  # (n_vertices,) bool
+    body_ids: np.ndarray = field(default=None)
+    dof_ids: np.ndarray = field(default=None)  # dofs of the free vertices, (3 n_free,)
+    qpos_ids: np.ndarray = field(default=None)  # their qpos entries, (3 n_free,)
+    free: slice = field(default=None)  # free vertex range
+    state: RodState = field(default=None)
+    mass: np.ndarray = field(default=None)  # per free dof [kg]
+
+
+def _held_vertices(n_vertices: int, start: str, end: str) -> np.ndarray:
+    fixed = np.zeros(n_vertices, dtype=bool)
+    held = {"free": 0, "pin": 1, "clamp": 2}
+    fixed[: held[start]] = True
+    if held[end]:
+        fixed[-held[end]:] = True
+    return fixed
+
+
+def _twist_boundary(rod: Rod, start: str, end: str, name: str) -> TwistBoundary:
+    bd = rod.boundary
+    if start == "clamp" and end == "clamp":
+        return bd if bd.kind == "clamped" else TwistBoundary("clamped", 0.0, 0.0)
+    if bd.kind == "clamped":
+        raise ValueError(
+            f"rod '{name}': TwistBoundary('clamped') needs start='clamp' and end='clamp', "
+            f"got start={start!r}, end={end!r}"
+        )
+    if start == "clamp":
+        return TwistBoundary("free", theta_first=bd.theta_first or 0.0)
+    if end == "clamp":
+        return TwistBoundary("free", theta_last=bd.theta_last or 0.0)
+    return TwistBoundary("free")
+
+
+class World:
+    """A MuJoCo scene with DER rods in it.
+
+    scene: None for an empty world, a path to an MJCF file, or a ``mujoco.MjSpec``.
+    dt: time step [s]; None keeps the scene's (MuJoCo's default 2e-3).
+    gravity: [m/s^2], shape (3,); None keeps the scene's.
+    mode: "implicit", "explicit" or "auto" (implicit when dt exceeds half the
+        estimated explicit stability limit of the stiffest rod).
+    mass_damping: a [1/s]; stiffness_damping: b [s] (see the module docstring).
+    contact: :class:`ContactParams` for all rods.
+    integrator: MuJoCo integrator name for a new world ("implicitfast" by default);
+        a scene keeps its own unless given.
+
+    Add rods with :meth:`add_rod`, then :meth:`step`. The MuJoCo model is
+    compiled on first use and available as :attr:`model` and :attr:`data`.
+    """
+
+    def __init__(self, scene=None, *, dt: float | None = None, gravity=None, mode: str = "auto",
+                 mass_damping: float = 0.0, stiffness_damping: float = 0.0,
+                 contact: ContactParams = ContactParams(), integrator: str | None = None):
+        if mode not in MODES:
+            raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+        if dt is not None and not (np.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be finite and > 0 [s], got {dt!r}")
+        if mass_damping < 0 or stiffness_damping < 0:
+            raise ValueError(
+                f"damping must be >= 0: mass_damping={mass_damping!r} [1/s], "
+                f"stiffness_damping={stiffness_damping!r} [s]"
+            )
+        if isinstance(scene, mujoco.MjSpec):
+            self.spec = scene
+        elif scene is None:
+            self.spec = mujoco.MjSpec()
+            self.spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+        else:
+            try:
+                self.spec = mujoco.MjSpec.from_file(str(scene))
+            except Exception as err:  # MuJoCo raises ValueError with its parser message
+                raise ValueError(f"cannot read MJCF scene {str(scene)!r}: {err}") from None
+        if integrator is not None:
+            self.spec.option.integrator = getattr(mujoco.mjtIntegrator, "mjINT_" + integrator.upper())
+        if dt is not None:
+            self.spec.option.timestep = dt
+        if gravity is not None:
+            self.spec.option.gravity = np.asarray(gravity, dtype=float)
+        self.requested_mode = mode
+        self.mass_damping = float(mass_damping)
+        self.stiffness_damping = float(stiffness_damping)
+        self.contact = contact
+        self._slots: list[_Slot] = []
+        self._model = None
+        self._data = None
+        self.mode = None
+        self.explicit_dt_limit = None
+        self.n_steps = 0
+
+    # -- building ------------------------------------------------------------
+    def add_rod(self, rod: Rod, name: str | None = None, *, start: str = "free", end: str = "free",
+                x: np.ndarray | None = None, rgba=(0.85, 0.25, 0.15, 1.0)) -> int:
+        """Add a rod; returns its index.
+
+        rod: the :class:`derods.Rod` (open rods; rings are not supported in a world yet).
+        start, end: "free", "pin" (the end vertex held in place) or "clamp" (the end
+            edge held in place and its material frame fixed; the continuum clamp
+            then sits at the middle of that edge, see :func:`derods.shapes.cantilever`).
+        x: initial vertex positions [m], shape (n_vertices, 3); default ``rod.rest_x``.
+        """
+        if self._model is not None:
+            raise RuntimeError("add rods before the world is compiled (before the first step)")
+        if rod.closed:
+            raise NotImplementedError("closed rods (rings) cannot be added to a World yet")
+        if rod.rest_x.ndim != 2:
+            raise ValueError("add rods to a World one at a time (rest_x of shape (n_vertices, 3))")
+        for key, val in (("start", start), ("end", end)):
+            if val not in END_KINDS:
+                raise ValueError(f"{key} must be one of {END_KINDS}, got {val!r}")
+        name = name or f"rod{len(self._slots)}"
+        if any(s.name == name for s in self._slots):
+            raise ValueError(f"a rod named {name!r} exists already; pass another name")
+        x0 = rod.rest_x if x is None else np.asarray(x, dtype=float)
+        if x0.shape != rod.rest_x.shape:
+            raise ValueError(f"x must have shape {rod.rest_x.shape}, got {x0.shape}")
+        fixed = _held_vertices(rod.n_vertices, start, end)
+        if fixed.all():
+            raise ValueError(f"rod '{name}' has every vertex held; give it more edges")
+        rod = rod.with_boundary(_twist_boundary(rod, start, end, name))
+        self._slots.append(_Slot(name, rod, x0, start, end, tuple(rgba), fixed))
+        return len(self._slots) - 1
+
+    def _scene_has_obstacles(self) -> bool:
+        return any(g.contype or g.conaffinity for g in self.spec.geoms)
+
+    def compile(self) -> None:
+        """Build the MuJoCo model (done automatically on first use)."""
+        if self._model is not None:
+            return
+        if not self._slots:
+            raise ValueError("the world has no rods; add one with add_rod()")
+        collide = self._scene_has_obstacles()
+        for slot in self._slots:
+            self._add_to_spec(slot, collide)
+        with warnings.catch_warnings():
+            # Our flexes carry no MuJoCo elasticity by design: derods supplies it.
+            warnings.filterwarnings("ignore", message=".*has no equality constraints or passive forces")
+            self._model = self.spec.compile()
+        self._data = mujoco.MjData(self._model)
+        mujoco.mj_forward(self._model, self._data)  # positions of every body
+        m = self._model
+        for slot in self._slots:
+            slot.body_ids = np.array([m.body(f"{slot.name}_{i}").id for i in range(slot.rod.n_vertices)])
+            free = np.flatnonzero(~slot.fixed)
+            slot.free = slice(int(free[0]), int(free[-1]) + 1)
+            slot.dof_ids = (m.body_dofadr[slot.body_ids[slot.free]][:, None] + np.arange(3)).ravel()
+            jnt = m.body_jntadr[slot.body_ids[slot.free]][:, None] + np.arange(3)
+            slot.qpos_ids = m.jnt_qposadr[jnt].ravel()
+            slot.mass = np.repeat(m.body_mass[slot.body_ids[slot.free]], 3)
+            x = slot.x0
+            t = frames.tangents(x, False)
+            state = RodState(x.copy(), frames.bishop_frames(x, False, slot.rod.u0), t, np.zeros(len(t)))
+            slot.state = slot.rod.advance(state, x)
+        self._solver = ImplicitSolver([len(s.dof_ids) for s in self._slots])
+        self.explicit_dt_limit = self._estimate_explicit_dt()
+        h = m.opt.timestep
+        if self.requested_mode == "auto":
+            self.mode = "implicit" if h > 0.5 * self.explicit_dt_limit else "explicit"
+        else:
+            self.mode = self.requested_mode
+        self._badqacc = self._data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
+
+    def _add_to_spec(self, slot: _Slot, collide: bool) -> None:
+        rod = slot.rod
+        mass = rod.vertex_mass
+        r = rod.material.radius
+        names = []
+        for i, xi in enumerate(slot.x0):
+            body = self.spec.worldbody.add_body(name=f"{slot.name}_{i}", pos=xi)
+            body.mass = float(mass[i])
+            body.inertia = [0.5 * float(mass[i]) * r * r] * 3
+            body.explicitinertial = True
+            if not slot.fixed[i]:
+                for k, axis in enumerate(np.eye(3)):
+                    body.add_joint(name=f"{slot.name}_{i}_{'xyz'[k]}", type=mujoco.mjtJoint.mjJNT_SLIDE,
+                                   axis=axis)
+            names.append(body.name)
+        flex = self.spec.add_flex()
+        flex.name = slot.name
+        flex.dim = 1
+        flex.radius = r
+        flex.vertbody = names
+        flex.elem = np.column_stack([np.arange(rod.n_edges), np.arange(1, rod.n_vertices)]).ravel().tolist()
+        flex.rgba = list(slot.rgba)
+        c = self.contact
+        # Collision work only where there is something to collide with.
+        flex.contype = flex.conaffinity = 1 if (collide or c.self_collision) else 0
+        flex.condim = c.condim
+        flex.friction = [c.friction, 0.005, 0.0001]
+        flex.solref = list(c.solref)
+        flex.selfcollide = (mujoco.mjtFlexSelf.mjFLEXSELF_AUTO if c.self_collision
+                            else mujoco.mjtFlexSelf.mjFLEXSELF_NONE)
+
+    def _estimate_explicit_dt(self) -> float:
+        """2 / omega_max of the stiffest rod, omega_max^2 bounded by Gershgorin on M^-1 K."""
+        limit = math.inf
+        for slot in self._slots:
+            terms = slot.rod.step_terms(slot.state, slot.state.x)
+            lo, hi = 3 * slot.free.start, 3 * slot.free.stop
+            ab = np.abs(restrict_band(terms.hessian_banded, lo, hi))
+            rows = ab.sum(axis=0)
+            for d in range(1, ab.shape[0]):
+                rows[d:] += ab[d, :-d]
+            if terms.twist is not None:
+                g = np.abs(terms.twist.g.reshape(-1)[lo:hi])
+                rows += terms.twist.c * g * g.sum()
+            w2 = np.max(rows / slot.mass)
+            if w2 > 0:
+                limit = min(limit, 2.0 / math.sqrt(w2))
+        return limit
+
+    # -- access --------------------------------------------------------------
+    @property
+    def model(self) -> mujoco.MjModel:
+        self.compile()
+        return self._model
+
+    @property
+    def data(self) -> mujoco.MjData:
+        self.compile()
+        return self._data
+
+    @property
+    def rods(self) -> list[Rod]:
+        return [s.rod for s in self._slots]
+
+    @property
+    def rod_names(self) -> list[str]:
+        return [s.name for s in self._slots]
+
+    def _slot(self, rod) -> _Slot:
+        if isinstance(rod, str):
+            for s in self._slots:
+                if s.name == rod:
+                    return s
+            raise KeyError(f"no rod named {rod!r}; rods: {self.rod_names}")
+        return self._slots[rod]
+
+    def positions(self, rod: int | str = 0) -> np.ndarray:
+        """Vertex positions [m] of a rod, shape (n_vertices, 3)."""
+        return self._positions(self._slot(rod))
+
+    def _positions(self, slot: _Slot) -> np.ndarray:
+        # From qpos, not xpos: after mj_step, xpos still holds the kinematics of the
+        # state *before* the integration, one step behind.
+        x = slot.x0.copy()
+        x[slot.free] += self.data.qpos[slot.qpos_ids].reshape(-1, 3)
+        return x
+
+    def velocities(self, rod: int | str = 0) -> np.ndarray:
+        """Vertex velocities [m/s] of a rod, shape (n_vertices, 3) (zero where held)."""
+        s = self._slot(rod)
+        v = np.zeros((s.rod.n_vertices, 3))
+        v[s.free] = self.data.qvel[s.dof_ids].reshape(-1, 3)
+        return v
+
+    def rod_state(self, rod: int | str = 0) -> RodState:
+        """The rod's current :class:`RodState` (frames and twist of the last step)."""
+        return self._slot(rod).state
+
+    @property
+    def active_terms(self) -> dict[str, tuple[str, ...]]:
+        """The energy terms each rod evaluates, by rod name."""
+        return {s.name: s.rod.active_terms for s in self._slots}
+
+    @property
+    def time(self) -> float:
+        return float(self.data.time)
+
+    # -- stepping ------------------------------------------------------------
+    def step(self, n_steps: int = 1) -> None:
+        """Advance ``n_steps`` steps of ``model.opt.timestep``."""
+        self.compile()
+        for _ in range(n_steps):
+            self._step_once()
+
+    def _step_once(self) -> None:
+        m, d = self._model, self._data
+        h = m.opt.timestep
+        gravity = m.opt.gravity
+        bands, rank1, grads = [], [], []
+        for slot in self._slots:
+            x = self._positions(slot)
+            self._check_strain(slot, x)
+            terms = slot.rod.step_terms(slot.state, x)
+            slot.state = terms.state
+            lo, hi = 3 * slot.free.start, 3 * slot.free.stop
+            grads.append(terms.grad_x.reshape(-1)[lo:hi])
+            if self.mode == "implicit" or self.stiffness_damping:
+                bands.append(restrict_band(terms.hessian_banded, lo, hi))
+                tw = terms.twist
+                rank1.append(None if tw is None or tw.c == 0 else (tw.g.reshape(-1)[lo:hi], float(tw.c)))
+        dofs = np.concatenate([s.dof_ids for s in self._slots])
+        mass = np.concatenate([s.mass for s in self._slots])
+        grad = np.concatenate(grads)
+        v = d.qvel[dofs]
+        if self.mode == "implicit":
+            user = np.concatenate([d.xfrc_applied[s.body_ids[s.free], :3].ravel() for s in self._slots])
+            other = mass * np.tile(gravity, len(mass) // 3) + d.qfrc_constraint[dofs] + user
+            dv = self._solver.solve(h, bands, rank1, mass, v, other - grad,
+                                    self.mass_damping, self.stiffness_damping)
+            force = mass * dv / h - other
+        else:
+            force = -grad - self.mass_damping * mass * v
+            if self.stiffness_damping:
+                force -= self.stiffness_damping * self._solver_kv(bands, rank1, v)
+        d.qfrc_applied[dofs] = force
+        mujoco.mj_step(m, d)
+        self.n_steps += 1
+        self._check_divergence(dofs)
+
+    def _solver_kv(self, bands, rank1, v):
+        from .implicit import banded_matvec
+
+        out = np.empty_like(v)
+        for i, band in enumerate(bands):
+            lo, hi = self._solver.offsets[i], self._solver.offsets[i + 1]
+            out[lo:hi] = banded_matvec(band, v[lo:hi])
+            if rank1[i] is not None:
+                g, c = rank1[i]
+                out[lo:hi] += c * g * (g @ v[lo:hi])
+        return out
+
+    def _fail(self, slot_name: str, what: str) -> None:
+        h = self._model.opt.timestep
+        hint = (f"try a smaller dt (now {h:g} s)"
+                + ("" if self.mode == "implicit" else ", mode='implicit'")
+                + f", or more damping (mass_damping now {self.mass_damping:g} 1/s)")
+        raise DivergenceError(
+            f"rod '{slot_name}' diverged at step {self.n_steps} (t = {self._data.time:.6g} s): {what}; {hint}"
+        )
+
+    def _check_strain(self, slot: _Slot, x: np.ndarray) -> None:
+        le = np.linalg.norm(np.diff(x, axis=0), axis=1)
+        strain = np.max(np.abs(le / slot.rod.rest_len - 1.0))
+        if not np.isfinite(strain) or strain > MAX_STRAIN:
+            self._fail(slot.name, f"edge strain {strain:.3g} exceeds {MAX_STRAIN:g}")
+
+    def _check_divergence(self, dofs: np.ndarray) -> None:
+        d = self._data
+        n_bad = d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
+        if n_bad != self._badqacc:
+            self._badqacc = n_bad
+            self._fail(self._slot_of_dof(None), "MuJoCo reported bad accelerations (BADQACC) and reset the state")
+        v = d.qvel[dofs]
+        if not np.all(np.isfinite(v)) or not np.all(np.isfinite(d.qpos)):
+            bad = int(np.flatnonzero(~np.isfinite(v))[0]) if not np.all(np.isfinite(v)) else 0
+            self._fail(self._slot_of_dof(bad), "NaN or infinite state")
+        speed = np.max(np.abs(v)) if len(v) else 0.0
+        if speed > MAX_SPEED:
+            self._fail(self._slot_of_dof(int(np.argmax(np.abs(v)))), f"vertex speed {speed:.3g} m/s exceeds {MAX_SPEED:g}")
+
+    def _slot_of_dof(self, k: int | None) -> str:
+        if k is None or len(self._slots) == 1:
+            return self._slots[0].name if len(self._slots) == 1 else "?"
+        i = int(np.searchsorted(self._solver.offsets, k, side="right") - 1)
+        return self._slots[i].name
