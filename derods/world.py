@@ -40,7 +40,8 @@ import mujoco
 import numpy as np
 
 from . import frames
-from .implicit import ImplicitSolver, restrict_band
+from . import contact
+from .implicit import ImplicitSystem, banded_matvec, restrict_band
 from .rod import Rod, RodState
 from .twist import TwistBoundary
 
@@ -63,6 +64,8 @@ class ContactParams:
 
     friction: sliding friction coefficient. solref: MuJoCo (timeconst [s],
     dampratio); a time constant near 2 dt keeps fast impacts from sinking in.
+    solimp: MuJoCo's impedance (dmin, dmax, width [m], midpoint, power); an
+    impedance closer to 1 makes contacts harder and lets less friction creep.
     condim: contact dimensionality (1 frictionless, 3 sliding friction, 4 or 6
     adds torsional / rolling). self_collision: edges of a rod collide with its
     other edges (neighbours excluded); off by default.
@@ -70,6 +73,7 @@ class ContactParams:
 
     friction: float = 1.0
     solref: tuple[float, float] = (0.005, 1.0)
+    solimp: tuple[float, ...] = (0.9, 0.95, 0.001, 0.5, 2.0)
     condim: int = 3
     self_collision: bool = False
 
@@ -238,13 +242,26 @@ class World:
             t = frames.tangents(x, False)
             state = RodState(x.copy(), frames.bishop_frames(x, False, slot.rod.u0), t, np.zeros(len(t)))
             slot.state = slot.rod.advance(state, x)
-        self._solver = ImplicitSolver([len(s.dof_ids) for s in self._slots])
+        self._dofs = np.concatenate([s.dof_ids for s in self._slots])
+        self._mass = np.concatenate([s.mass for s in self._slots])
+        self._offsets = np.concatenate([[0], np.cumsum([len(s.dof_ids) for s in self._slots])]).astype(int)
+        self._local_of_dof = np.full(m.nv, -1)
+        self._local_of_dof[self._dofs] = np.arange(len(self._dofs))
+        self.last_contact_force = np.zeros(0)
         self.explicit_dt_limit = self._estimate_explicit_dt()
         h = m.opt.timestep
         if self.requested_mode == "auto":
             self.mode = "implicit" if h > 0.5 * self.explicit_dt_limit else "explicit"
         else:
             self.mode = self.requested_mode
+        supported = (mujoco.mjtIntegrator.mjINT_EULER, mujoco.mjtIntegrator.mjINT_IMPLICIT,
+                     mujoco.mjtIntegrator.mjINT_IMPLICITFAST)
+        if self.mode == "implicit" and m.opt.integrator not in supported:
+            name = mujoco.mjtIntegrator(m.opt.integrator).name
+            raise ValueError(
+                f"the implicit rod step needs MuJoCo's Euler, implicit or implicitfast integrator, "
+                f"the scene uses {name}; pass integrator='implicitfast' to World"
+            )
         self._badqacc = self._data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
 
     def _add_to_spec(self, slot: _Slot, collide: bool) -> None:
@@ -275,6 +292,7 @@ class World:
         flex.condim = c.condim
         flex.friction = [c.friction, 0.005, 0.0001]
         flex.solref = list(c.solref)
+        flex.solimp = list(c.solimp)
         flex.selfcollide = (mujoco.mjtFlexSelf.mjFLEXSELF_AUTO if c.self_collision
                             else mujoco.mjtFlexSelf.mjFLEXSELF_NONE)
 
@@ -364,7 +382,6 @@ class World:
     def _step_once(self) -> None:
         m, d = self._model, self._data
         h = m.opt.timestep
-        gravity = m.opt.gravity
         bands, rank1, grads = [], [], []
         for slot in self._slots:
             x = self._positions(slot)
@@ -373,40 +390,56 @@ class World:
             slot.state = terms.state
             lo, hi = 3 * slot.free.start, 3 * slot.free.stop
             grads.append(terms.grad_x.reshape(-1)[lo:hi])
-            if self.mode == "implicit" or self.stiffness_damping:
-                bands.append(restrict_band(terms.hessian_banded, lo, hi))
-                tw = terms.twist
-                rank1.append(None if tw is None or tw.c == 0 else (tw.g.reshape(-1)[lo:hi], float(tw.c)))
-        dofs = np.concatenate([s.dof_ids for s in self._slots])
-        mass = np.concatenate([s.mass for s in self._slots])
-        grad = np.concatenate(grads)
+            bands.append(restrict_band(terms.hessian_banded, lo, hi))
+            tw = terms.twist
+            rank1.append(None if tw is None or tw.c == 0 else (tw.g.reshape(-1)[lo:hi], float(tw.c)))
+        dofs, mass = self._dofs, self._mass
         v = d.qvel[dofs]
-        if self.mode == "implicit":
-            user = np.concatenate([d.xfrc_applied[s.body_ids[s.free], :3].ravel() for s in self._slots])
-            other = mass * np.tile(gravity, len(mass) // 3) + d.qfrc_constraint[dofs] + user
-            dv = self._solver.solve(h, bands, rank1, mass, v, other - grad,
-                                    self.mass_damping, self.stiffness_damping)
-            force = mass * dv / h - other
-        else:
+        system = ImplicitSystem(h, self._offsets, bands, rank1, mass, self.mass_damping,
+                                self.stiffness_damping)
+        grad = np.concatenate(grads)
+        if self.mode == "explicit":
             force = -grad - self.mass_damping * mass * v
             if self.stiffness_damping:
-                force -= self.stiffness_damping * self._solver_kv(bands, rank1, v)
-        d.qfrc_applied[dofs] = force
-        mujoco.mj_step(m, d)
+                force -= self.stiffness_damping * system.k_matvec(v)
+            d.qfrc_applied[dofs] = force
+            mujoco.mj_step(m, d)
+        else:
+            self._implicit_step(system, grad, v)
         self.n_steps += 1
         self._check_divergence(dofs)
 
-    def _solver_kv(self, bands, rank1, v):
-        from .implicit import banded_matvec
-
-        out = np.empty_like(v)
-        for i, band in enumerate(bands):
-            lo, hi = self._solver.offsets[i], self._solver.offsets[i + 1]
-            out[lo:hi] = banded_matvec(band, v[lo:hi])
-            if rank1[i] is not None:
-                g, c = rank1[i]
-                out[lo:hi] += c * g * (g @ v[lo:hi])
-        return out
+    def _implicit_step(self, system: ImplicitSystem, grad: np.ndarray, v: np.ndarray) -> None:
+        """One implicit step: unconstrained solve, MuJoCo's forward pass (contacts and
+        the rest of the scene), contacts re-solved in the implicit metric, integration."""
+        m, d = self._model, self._data
+        dofs, mass = self._dofs, self._mass
+        user = np.concatenate([d.xfrc_applied[s.body_ids[s.free], :3].ravel() for s in self._slots])
+        other = mass * np.tile(m.opt.gravity, len(mass) // 3) + user
+        a0 = system.solve(system.rhs(other - grad, v))
+        # With this force MuJoCo's unconstrained acceleration of the rod dofs is a0, so
+        # its own constraint solve (for bodies the rods touch) sees the implicit motion.
+        d.qfrc_applied[dofs] = mass * a0 - other
+        mujoco.mj_checkPos(m, d)
+        mujoco.mj_checkVel(m, d)
+        mujoco.mj_forward(m, d)
+        rows, external = contact.rod_rows(m, d, self._local_of_dof, system.n)
+        if rows is not None or np.any(external):
+            a = a0 if not np.any(external) else a0 + system.solve(external)
+            if rows is not None:
+                rows.rescale(system)
+                a, lam, _ = contact.solve(system, a, rows)
+                self.last_contact_force = lam
+            d.qacc[dofs] = a
+            if m.opt.integrator != mujoco.mjtIntegrator.mjINT_EULER:
+                # mj_implicit re-solves from forces; our dofs carry no damping or coupling
+                # there, so this force reproduces acceleration a.
+                d.qfrc_constraint[dofs] = mass * a - d.qfrc_smooth[dofs]
+        mujoco.mj_checkAcc(m, d)
+        if m.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER:
+            mujoco.mj_Euler(m, d)
+        else:
+            mujoco.mj_implicit(m, d)
 
     def _fail(self, slot_name: str, what: str) -> None:
         h = self._model.opt.timestep
@@ -440,5 +473,5 @@ class World:
     def _slot_of_dof(self, k: int | None) -> str:
         if k is None or len(self._slots) == 1:
             return self._slots[0].name if len(self._slots) == 1 else "?"
-        i = int(np.searchsorted(self._solver.offsets, k, side="right") - 1)
+        i = int(np.searchsorted(self._offsets, k, side="right") - 1)
         return self._slots[i].name

@@ -1,0 +1,198 @@
+"""Contact between rods and the scene, solved in the metric of the implicit step.
+
+MuJoCo finds the contacts and sets up its soft-constraint rows for them (the
+Jacobian ``efc_J``, reference accelerations ``efc_aref``, weights ``efc_D``).
+Its own solver would find the contact forces with the bare vertex masses M,
+as if each vertex were free; but within an implicit step a vertex is bound to
+its neighbours by the stiffness h^2 K, and a contact force computed for the
+wrong inertia is either far too weak (the rod sinks in) or, lagged to the
+next step, pumps energy (chatter). So derods solves the same problem MuJoCo
+solves, in the right metric A = M (1 + h a_m) + (h^2 + h b) K:
+
+    minimize_a  1/2 (a - a0)^T A (a - a0) + sum_i 1/2 D_i min(J_i a - aref_i, 0)^2,
+
+MuJoCo's primal formulation for pyramidal (and frictionless) contacts, with
+a0 the unconstrained implicit acceleration. Each row of a rod touching a
+static obstacle touches at most two neighbouring vertices, so the Hessian
+A + J^T D J stays banded and Newton's method costs one banded Cholesky per
+iteration. Rows that couple a rod to other moving bodies, to another rod or
+to distant parts of itself (self-contact), or elliptic-cone rows, keep the
+force MuJoCo's own solver computed for them in the same step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from .implicit import ImplicitSystem
+from .stencil import XX_BANDWIDTH
+
+_W = XX_BANDWIDTH + 1  # width of a row's dof window that keeps the Hessian banded
+_P, _Q = np.tril_indices(_W)
+_SUPPORTED = (int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL),
+              int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS))
+
+
+@dataclass
+class Rows:
+    """Constraint rows solved by derods, each confined to a window of 9 rod dofs.
+
+    col0: first local dof of each row's window, shape (k,).
+    jw: the row's Jacobian entries in its window, shape (k, 9).
+    aref: reference acceleration [m/s^2], shape (k,). d: row weight 1/R [1/kg... ], shape (k,).
+    efc: the rows' indices in MuJoCo's efc arrays, shape (k,).
+    """
+
+    col0: np.ndarray
+    jw: np.ndarray
+    aref: np.ndarray
+    d: np.ndarray
+    efc: np.ndarray
+
+    r_over_diag: np.ndarray | None = None
+
+    def rescale(self, system: ImplicitSystem) -> None:
+        """Recompute the row weights D = 1 / R for the implicit metric.
+
+        MuJoCo sets R = (1 - d) / d * diagA with diagA its estimate of the
+        Delassus diagonal J M^-1 J^T, which sees the bare vertex masses; in the
+        implicit step a vertex is far heavier, so the same R would make every
+        contact and friction row much softer than authored (friction creeps).
+        Keeping the authored impedance d means R = (1 - d) / d * J A^-1 J^T,
+        whose diagonal needs only the entries of A^-1 inside the band.
+        """
+        zb, corrections = system.inverse_diagonal_terms()
+        n = system.n
+        zpad = np.concatenate([zb, np.zeros((zb.shape[0], _W))], axis=1)
+        cols = self.col0[:, None] + _Q[None, :]
+        z = zpad[(_P - _Q)[None, :], cols]  # Z[col0 + p, col0 + q] for p >= q, (k, 45)
+        weight = np.where(_P == _Q, 1.0, 2.0)
+        diag_a = np.einsum("kt,kt,kt,t->k", self.jw[:, _P], self.jw[:, _Q], z, weight)
+        for zvec, w in corrections:
+            diag_a -= w * self.apply(zvec) ** 2
+        self.d = 1.0 / (self.r_over_diag * diag_a)
+
+    def __len__(self) -> int:
+        return len(self.efc)
+
+    def apply(self, a: np.ndarray) -> np.ndarray:
+        """J a for every row, shape (k,)."""
+        pad = np.concatenate([a, np.zeros(_W)])
+        return np.einsum("kw,kw->k", self.jw, pad[self.col0[:, None] + np.arange(_W)])
+
+    def transpose_apply(self, lam: np.ndarray, n: int) -> np.ndarray:
+        """J^T lam, shape (n,)."""
+        out = np.bincount((self.col0[:, None] + np.arange(_W)).ravel(), (self.jw * lam[:, None]).ravel(),
+                          minlength=n + _W)
+        return out[:n]
+
+    def band(self, weights: np.ndarray, n: int) -> np.ndarray:
+        """Lower band (9, n) of J^T diag(weights) J."""
+        vals = weights[:, None] * self.jw[:, _P] * self.jw[:, _Q]
+        flat = (_P - _Q)[None, :] * (n + _W) + self.col0[:, None] + _Q[None, :]
+        out = np.bincount(flat.ravel(), vals.ravel(), minlength=_W * (n + _W))
+        return out.reshape(_W, n + _W)[:, :n]
+
+
+def rod_rows(model: mujoco.MjModel, data: mujoco.MjData, local_of_dof: np.ndarray,
+             n: int) -> tuple[Rows | None, np.ndarray]:
+    """Split the constraint rows that act on rod dofs into derods' rows and external force.
+
+    local_of_dof: local index of every MuJoCo dof in the rods' free dofs, -1 elsewhere, (nv,).
+    n: number of local dofs. Returns (rows or None, external force [N] on the local dofs (n,)).
+    """
+    nefc = data.nefc
+    ext = np.zeros(n)
+    if nefc == 0:
+        return None, ext
+    if mujoco.mj_isSparse(model):
+        rownnz = data.efc_J_rownnz[:nefc]
+        row = np.repeat(np.arange(nefc), rownnz)
+        start = data.efc_J_rowadr[:nefc]
+        # Positions of every nonzero: row start plus the rank within the row.
+        first = np.repeat(np.cumsum(rownnz) - rownnz, rownnz)
+        pos = np.repeat(start, rownnz) + np.arange(len(row)) - first
+        col = data.efc_J_colind[pos]
+        val = data.efc_J[pos]
+    else:
+        dense = data.efc_J[: nefc * model.nv].reshape(nefc, model.nv)
+        row, col = np.nonzero(dense)
+        val = dense[row, col]
+    local = local_of_dof[col]
+    on_rod = local >= 0
+    touches = np.zeros(nefc, dtype=bool)
+    touches[row[on_rod]] = True
+    if not touches.any():
+        return None, ext
+    elsewhere = np.zeros(nefc, dtype=bool)
+    elsewhere[row[~on_rod]] = True
+    lo = np.full(nefc, np.iinfo(np.int64).max)
+    hi = np.full(nefc, -1)
+    np.minimum.at(lo, row[on_rod], local[on_rod])
+    np.maximum.at(hi, row[on_rod], local[on_rod])
+    supported = np.isin(data.efc_type[:nefc], _SUPPORTED)
+    mine = touches & ~elsewhere & supported & (hi - lo < _W)
+    external = touches & ~mine
+    if external.any():
+        sel = on_rod & external[row]
+        np.add.at(ext, local[sel], val[sel] * data.efc_force[row[sel]])
+    if not mine.any():
+        return None, ext
+    efc = np.flatnonzero(mine)
+    k_of_row = np.full(nefc, -1)
+    k_of_row[efc] = np.arange(len(efc))
+    sel = on_rod & mine[row]
+    k = k_of_row[row[sel]]
+    jw = np.zeros((len(efc), _W))
+    jw[k, local[sel] - lo[row[sel]]] = val[sel]
+    rows = Rows(lo[efc], jw, data.efc_aref[efc].copy(), data.efc_D[efc].copy(), efc)
+    rows.r_over_diag = data.efc_R[efc] / data.efc_diagA[efc]
+    return rows, ext
+
+
+def solve(system: ImplicitSystem, a0: np.ndarray, rows: Rows, max_iter: int = 30,
+          tol: float = 1e-10) -> tuple[np.ndarray, np.ndarray, int]:
+    """Newton's method on the contact problem in the implicit metric.
+
+    system: the step's :class:`derods.implicit.ImplicitSystem`.
+    a0: unconstrained end-of-step acceleration [m/s^2], shape (n,).
+    Returns (a [m/s^2] shape (n,), row forces lam [N] shape (k,), iterations).
+    The objective is convex and piecewise quadratic; each Newton step is
+    followed by an exact line search along its direction.
+    """
+    n = system.n
+    a = a0.copy()
+    it = 0
+    for it in range(1, max_iter + 1):
+        jar = rows.apply(a) - rows.aref
+        active = jar < 0
+        w = np.where(active, rows.d, 0.0)
+        grad = system.a_matvec(a - a0) + rows.transpose_apply(w * jar, n)
+        scale = np.max(np.abs(system.mass * a0)) + np.max(np.abs(rows.d * rows.aref)) + 1e-300
+        if np.max(np.abs(grad)) <= tol * scale:
+            break
+        delta = -system.solve(grad, extra_band=rows.band(w, n))
+        # Exact line search on f(a + t delta): f'(t) is piecewise linear and increasing.
+        jd = rows.apply(delta)
+        ad = system.a_matvec(delta)
+        d_a = delta @ ad
+        d_g = delta @ system.a_matvec(a - a0)
+        t = 1.0
+        for _ in range(20):
+            r = jar + t * jd
+            act = r < 0
+            fp = t * d_a + d_g + np.sum(rows.d[act] * r[act] * jd[act])
+            fpp = d_a + np.sum(rows.d[act] * jd[act] ** 2)
+            step = fp / fpp
+            t -= step
+            if abs(step) <= 1e-12 * max(1.0, abs(t)):
+                break
+        a = a + t * delta
+        if np.max(np.abs(t * delta)) <= tol * (np.max(np.abs(a)) + 1e-300):
+            break
+    jar = rows.apply(a) - rows.aref
+    lam = np.where(jar < 0, -rows.d * jar, 0.0)
+    return a, lam, it
