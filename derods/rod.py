@@ -362,7 +362,13 @@ class Rod:
 
         batch = x.shape[:-2]
         nv, ne, nj = self.n_vertices, self.n_edges, self.n_vertices - 2
-        flat = lambda a, *tail: np.ascontiguousarray(np.broadcast_to(a, batch + tail)).reshape((-1,) + tail)  # noqa: E731
+        def flat(a, *tail):
+            # (batch..., *tail) -> (n_rods, *tail) contiguous, copying only when needed.
+            a = np.asarray(a, dtype=float)
+            if a.shape == batch + tail:
+                return np.ascontiguousarray(a.reshape((-1,) + tail))
+            return np.ascontiguousarray(np.broadcast_to(a, batch + tail)).reshape((-1,) + tail)
+
         xs = flat(x, nv, 3)
         n = xs.shape[0]
         u, t, theta = np.empty((n, ne, 3)), np.empty((n, ne, 3)), np.empty((n, ne))
