@@ -1,7 +1,8 @@
 """The ``derods`` command line (``python -m derods``).
 
 Commands:
-  demo   build rods from the paper's test cases and print their frames and energies.
+  demo    build rods from the paper's test cases and print their frames and energies.
+  bench   run a benchmark case (cantilever, frequency, drop) and print its records.
 """
 
 from __future__ import annotations
@@ -68,6 +69,13 @@ def demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def bench(args: argparse.Namespace) -> int:
+    """``derods bench CASE``: see :mod:`derods.bench`."""
+    from derods import bench as bench_mod
+
+    return bench_mod.main(args.case, bench_mod.params_from_args(args), args.json)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="derods", description="Discrete Elastic Rods on MuJoCo")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -77,6 +85,22 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--radius", type=float, default=0.01, help="rod radius [m] (default 0.01)")
     p.add_argument("--density", type=float, default=1000.0, help="density [kg/m^3] (default 1000)")
     p.set_defaults(func=demo)
+
+    b = sub.add_parser("bench", help="run a benchmark case and print one record per run")
+    b.add_argument("case", choices=["cantilever", "frequency", "drop"])
+    b.add_argument("--backend", default="der", help="der (default)")
+    b.add_argument("--n-edges", type=_positive_int, default=None, help="edges per rod (default 20)")
+    b.add_argument("--dt", type=float, default=None, help="time step [s] (default 1e-2)")
+    b.add_argument("--young", type=float, default=None, help="Young's modulus E [Pa] (default 1e8)")
+    g = b.add_mutually_exclusive_group()
+    g.add_argument("--shear", type=float, default=None, help="shear modulus G [Pa]")
+    g.add_argument("--poisson", type=float, default=None, help="Poisson's ratio (default 0.5)")
+    b.add_argument("--length", type=float, default=None, help="rod length [m] (default 1)")
+    b.add_argument("--radius", type=float, default=None, help="rod radius [m] (default 0.01)")
+    b.add_argument("--density", type=float, default=None, help="density [kg/m^3] (default 1000)")
+    b.add_argument("--mode", choices=["implicit", "explicit"], default=None, help="default implicit")
+    b.add_argument("--json", action="store_true", help="print one JSON object per line")
+    b.set_defaults(func=bench)
     args = parser.parse_args(argv)
     try:
         return args.func(args)

@@ -248,7 +248,7 @@ class World:
         self._free_bodies = np.concatenate([s.body_ids[s.free] for s in self._slots])
         self._local_of_dof = np.full(m.nv, -1)
         self._local_of_dof[self._dofs] = np.arange(len(self._dofs))
-        self.last_contact_force = np.zeros(0)
+        self._contact = np.zeros(len(self._dofs))
         self.explicit_dt_limit = self._estimate_explicit_dt()
         h = m.opt.timestep
         if self.requested_mode == "auto":
@@ -353,12 +353,42 @@ class World:
         x[slot.free] += self.data.qpos[slot.qpos_ids].reshape(-1, 3)
         return x
 
+    def set_positions(self, rod: int | str, x: np.ndarray) -> None:
+        """Move a rod's free vertices to ``x`` [m], shape (n_vertices, 3), at rest.
+
+        Held vertices (pins, clamps) stay where they are; frames are carried along.
+        """
+        s = self._slot(rod)
+        x = np.asarray(x, dtype=float)
+        if x.shape != s.x0.shape:
+            raise ValueError(f"x must have shape {s.x0.shape}, got {x.shape}")
+        d = self.data
+        d.qpos[s.qpos_ids] = (x - s.x0)[s.free].ravel()
+        d.qvel[s.dof_ids] = 0.0
+        mujoco.mj_forward(self._model, d)
+        s.state = s.rod.advance(s.state, self._positions(s))
+
     def velocities(self, rod: int | str = 0) -> np.ndarray:
         """Vertex velocities [m/s] of a rod, shape (n_vertices, 3) (zero where held)."""
         s = self._slot(rod)
         v = np.zeros((s.rod.n_vertices, 3))
         v[s.free] = self.data.qvel[s.dof_ids].reshape(-1, 3)
         return v
+
+    def contact_force(self, rod: int | str = 0) -> np.ndarray:
+        """Contact (constraint) force [N] on each vertex in the last step, shape (n_vertices, 3).
+
+        In implicit mode this is the force derods solved for in the implicit
+        metric (plus MuJoCo's for rows it left to MuJoCo); in explicit mode, MuJoCo's.
+        """
+        s = self._slot(rod)
+        out = np.zeros((s.rod.n_vertices, 3))
+        if self.mode == "implicit":
+            i = self._slots.index(s)
+            out[s.free] = self._contact[self._offsets[i]:self._offsets[i + 1]].reshape(-1, 3)
+        else:
+            out[s.free] = self.data.qfrc_constraint[s.dof_ids].reshape(-1, 3)
+        return out
 
     def rod_state(self, rod: int | str = 0) -> RodState:
         """The rod's current :class:`RodState` (frames and twist of the last step)."""
@@ -425,12 +455,13 @@ class World:
         mujoco.mj_checkVel(m, d)
         mujoco.mj_forward(m, d)
         rows, external = contact.rod_rows(m, d, self._local_of_dof, system.n)
+        self._contact = external
         if rows is not None or np.any(external):
             a = a0 if not np.any(external) else a0 + system.solve(external)
             if rows is not None:
                 rows.rescale(system)
                 a, lam, _ = contact.solve(system, a, rows)
-                self.last_contact_force = lam
+                self._contact = external + rows.transpose_apply(lam, system.n)
             d.qacc[dofs] = a
             if m.opt.integrator != mujoco.mjtIntegrator.mjINT_EULER:
                 # mj_implicit re-solves from forces; our dofs carry no damping or coupling

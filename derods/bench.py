@@ -1,0 +1,292 @@
+"""Benchmark cases, each defined once: ``python -m derods bench CASE``.
+
+Every case builds its scene from a :class:`CaseParams`, runs it, and returns
+records (dicts, one JSON object per line on the command line) with the same
+fields: what was run (case, backend, mujoco_version, n_edges, dt, mode, young,
+shear, length, radius, density, gravity), what came out (measured, reference,
+rel_error, stable), what it cost (steps, sim_s, wall_s, us_per_step) and what
+the world evaluated (active_terms). Cases may add fields of their own.
+
+Cases:
+
+* ``cantilever``: a rod clamped at one end, horizontal, sags under gravity
+  until it rests; measured: tip drop [m]; reference: the inextensible
+  elastica (:func:`derods.reference.cantilever_elastica`).
+* ``frequency``: the same rod without gravity released from a small bend;
+  measured: first bending frequency [Hz] from the tip's zero crossings;
+  reference: 1.8751^2 / (2 pi) sqrt(alpha / (rho A L^4)).
+* ``drop``: a free rod dropped from 0.5 m, flat and tilted by 0.3 rad, onto
+  the floor and across the edge of a box (mjcf/floor.xml, mjcf/box.xml);
+  measured: the deepest penetration [m] once the impact is over (from 0.5 s
+  after first contact); reference: the rod radius, which it must stay below;
+  the rod must also come to rest (speed below 1 mm/s) within 3 s.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import pathlib
+import platform
+import sys
+import time
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from . import reference, shapes
+from .rod import Material, Rod
+from .world import DivergenceError, World
+
+MJCF_DIR = pathlib.Path(__file__).resolve().parents[1] / "mjcf"
+CASES = ("cantilever", "frequency", "drop")
+BACKENDS = ("der",)
+
+#: A dropped rod is at rest when no vertex moves faster than this [m/s].
+REST_SPEED = 1e-3
+#: A cantilever has settled when no vertex moves faster than this times its length [1/s].
+SETTLE_SPEED = 1e-5
+
+
+@dataclass(frozen=True)
+class CaseParams:
+    """The rod and the time stepping shared by every case (SI units).
+
+    n_edges: edges of the rod. dt: time step [s]. young: E [Pa]. shear: G [Pa]
+    (None: from poisson). length [m], radius [m], density [kg/m^3], gravity
+    [m/s^2] (magnitude, pointing down). mode: "implicit" or "explicit".
+    backend: "der" (MuJoCo's native rods arrive with the comparison tools).
+    """
+
+    n_edges: int = 20
+    dt: float = 1e-2
+    young: float = 1e8
+    shear: float | None = None
+    poisson: float = 0.5
+    length: float = 1.0
+    radius: float = 0.01
+    density: float = 1000.0
+    gravity: float = 9.81
+    mode: str = "implicit"
+    backend: str = "der"
+
+    def __post_init__(self):
+        if self.backend not in BACKENDS:
+            raise ValueError(
+                f"backend {self.backend!r} is not available yet; available: {BACKENDS} "
+                "(MuJoCo's native flex and cable rods arrive with the comparison tools)"
+            )
+        if self.mode not in ("implicit", "explicit"):
+            raise ValueError(f"mode must be 'implicit' or 'explicit', got {self.mode!r}")
+        if int(self.n_edges) != self.n_edges or self.n_edges < 2:
+            raise ValueError(f"n_edges must be an integer >= 2, got {self.n_edges!r}")
+        for name, unit in (("dt", "s"), ("length", "m")):
+            if not (np.isfinite(getattr(self, name)) and getattr(self, name) > 0):
+                raise ValueError(f"{name} must be finite and > 0 [{unit}], got {getattr(self, name)!r}")
+        if self.gravity < 0:
+            raise ValueError(f"gravity is a magnitude and must be >= 0 [m/s^2], got {self.gravity!r}")
+
+    @property
+    def material(self) -> Material:
+        return Material(young=self.young, density=self.density, radius=self.radius,
+                        shear=self.shear, poisson=self.poisson)
+
+
+def _record(case: str, p: CaseParams, world: World | None, measured, ref, stable: bool,
+            wall: float, **extra) -> dict:
+    steps = world.n_steps if world is not None else 0
+    mat = p.material
+    rel = (measured - ref) / ref if (measured is not None and ref) else None
+    return {
+        "case": case,
+        "backend": p.backend,
+        "mujoco_version": mujoco.__version__,
+        "n_edges": p.n_edges,
+        "dt": p.dt,
+        "mode": p.mode,
+        "young": p.young,
+        "shear": mat.shear_modulus,
+        "length": p.length,
+        "radius": p.radius,
+        "density": p.density,
+        "gravity": p.gravity,
+        "measured": measured,
+        "reference": ref,
+        "rel_error": rel,
+        "stable": stable,
+        "steps": steps,
+        "sim_s": steps * p.dt,
+        "wall_s": wall,
+        "us_per_step": 1e6 * wall / steps if steps else None,
+        "active_terms": sorted({t for terms in world.active_terms.values() for t in terms}) if world else [],
+        **extra,
+    }
+
+
+def _first_mode_rate(p: CaseParams) -> float:
+    """Angular frequency [rad/s] of the slowest mode: bending, or the rod as a pendulum."""
+    mat = p.material
+    w1 = 2 * math.pi * reference.cantilever_frequency(mat.alpha, mat.line_density, p.length)
+    return max(w1, math.sqrt(p.gravity / p.length) if p.gravity else 0.0)
+
+
+def _cantilever_world(p: CaseParams, gravity: float, damping: float) -> tuple[World, Rod]:
+    rod = Rod(shapes.cantilever(p.length, p.n_edges, start=(0.0, 0.0, 1.0)), p.material)
+    world = World(dt=p.dt, gravity=(0.0, 0.0, -gravity), mode=p.mode, mass_damping=damping)
+    world.add_rod(rod, "rod", start="clamp")
+    world.compile()
+    return world, rod
+
+
+def cantilever(p: CaseParams, max_time: float = 30.0) -> list[dict]:
+    """Static tip drop of a horizontal cantilever under its weight (REFERENCE.md case 2)."""
+    mat = p.material
+    ref = reference.cantilever_elastica(mat.line_density * p.gravity, p.length, mat.alpha)["tip_drop"]
+    # Mass-proportional damping at 0.7 of critical on the slowest mode settles it fastest.
+    world, rod = _cantilever_world(p, p.gravity, 1.4 * _first_mode_rate(p))
+    chunk = max(1, int(round(0.1 / p.dt)))
+    t0 = time.perf_counter()
+    stable, measured, note = True, None, ""
+    try:
+        while world.time < max_time:
+            world.step(chunk)
+            if np.max(np.abs(world.velocities())) < SETTLE_SPEED * p.length:
+                break
+        measured = 1.0 - float(world.positions()[-1, 2])
+    except DivergenceError as err:
+        stable, note = False, str(err)
+    wall = time.perf_counter() - t0
+    settled = stable and np.max(np.abs(world.velocities())) < SETTLE_SPEED * p.length
+    return [_record("cantilever", p, world, measured, ref, stable, wall, settled=bool(settled),
+                    note=note)]
+
+
+def frequency(p: CaseParams, periods: int = 4) -> list[dict]:
+    """First bending frequency of a clamped-free rod (REFERENCE.md case 4), no gravity."""
+    mat = p.material
+    ref = reference.cantilever_frequency(mat.alpha, mat.line_density, p.length)
+    world, rod = _cantilever_world(p, 0.0, 0.0)
+    # Start from the static shape under a uniform load (97 % first mode), tip at 1 % of L,
+    # keeping the clamped edge straight.
+    s = np.clip(rod.rest_x[:, 0], 0.0, None)
+    shape = s**2 * (6 * p.length**2 - 4 * p.length * s + s**2)
+    shape[:2] = 0.0
+    x0 = rod.rest_x.copy()
+    x0[:, 2] += 0.01 * p.length * shape / shape[-1]
+    world.set_positions("rod", x0)
+    n_steps = int(math.ceil(periods / ref / p.dt))
+    z = np.empty(n_steps)
+    t0 = time.perf_counter()
+    stable, measured, note = True, None, ""
+    try:
+        for k in range(n_steps):
+            world.step()
+            z[k] = world.positions()[-1, 2] - 1.0
+        t = p.dt * np.arange(1, n_steps + 1)
+        up = np.flatnonzero((z[:-1] < 0) & (z[1:] >= 0))
+        crossings = t[up] - z[up] * p.dt / (z[up + 1] - z[up])  # linear interpolation
+        if len(crossings) >= 2:
+            measured = float(1.0 / np.mean(np.diff(crossings)))
+    except DivergenceError as err:
+        stable, note = False, str(err)
+    wall = time.perf_counter() - t0
+    return [_record("frequency", p, world, measured, ref, stable, wall, note=note)]
+
+
+def drop(p: CaseParams, sim_time: float = 3.0, mass_damping: float = 2.0) -> list[dict]:
+    """A free rod dropped flat and tilted onto the floor and across a box edge."""
+    out = []
+    for scene, tilt in (("floor", 0.0), ("floor", 0.3), ("box_edge", 0.0), ("box_edge", 0.3)):
+        path = MJCF_DIR / ("floor.xml" if scene == "floor" else "box.xml")
+        x = shapes.straight(p.length, p.n_edges, direction=(math.cos(tilt), 0.0, math.sin(tilt)))
+        x -= x.mean(axis=0)
+        # Centred 0.5 m above the floor; across the box, centred on its +x edge (x = 0.15).
+        x += (0.15, 0.0, 0.7) if scene == "box_edge" else (0.0, 0.0, 0.5)
+        world = World(path, dt=p.dt, gravity=(0.0, 0.0, -p.gravity), mode=p.mode,
+                      mass_damping=mass_damping)
+        world.add_rod(Rod(x, p.material), "rod")
+        world.compile()
+        t0 = time.perf_counter()
+        stable, note = True, ""
+        first_contact, deepest_late, deepest, rest_at = None, 0.0, 0.0, None
+        try:
+            while world.time < sim_time - 0.5 * p.dt:
+                world.step()
+                d = world.data
+                pen = max((-c.dist for c in d.contact[: d.ncon]), default=0.0)
+                if d.ncon and first_contact is None:
+                    first_contact = world.time
+                deepest = max(deepest, pen)
+                if first_contact is not None and world.time >= first_contact + 0.5:
+                    deepest_late = max(deepest_late, pen)
+                speed = float(np.max(np.abs(world.velocities())))
+                if speed < REST_SPEED:
+                    rest_at = world.time if rest_at is None else rest_at
+                else:
+                    rest_at = None
+        except DivergenceError as err:
+            stable, note = False, str(err)
+        wall = time.perf_counter() - t0
+        at_rest = stable and rest_at is not None
+        rec = _record("drop", p, world, deepest_late if stable else None, p.radius, stable, wall,
+                      scene=scene, tilt=tilt, mass_damping=mass_damping, impact_penetration=deepest,
+                      at_rest=at_rest, rest_time=rest_at, note=note)
+        # Passing means staying below the radius: report the error against that bound.
+        rec["rel_error"] = None if not stable else (deepest_late - p.radius) / p.radius
+        out.append(rec)
+    return out
+
+
+RUNNERS = {"cantilever": cantilever, "frequency": frequency, "drop": drop}
+
+
+def run(case: str, params: CaseParams) -> list[dict]:
+    """Run one case and return its records."""
+    if case not in RUNNERS:
+        raise ValueError(f"unknown case {case!r}; cases: {', '.join(CASES)}")
+    return RUNNERS[case](params)
+
+
+def environment() -> dict:
+    """Versions and machine, for reports."""
+    import numba
+    import scipy
+
+    return {"python": platform.python_version(), "numpy": np.__version__, "scipy": scipy.__version__,
+            "numba": numba.__version__, "mujoco": mujoco.__version__, "machine": platform.machine(),
+            "processor": platform.processor() or platform.machine()}
+
+
+def format_record(rec: dict) -> str:
+    """One readable line for a record."""
+    parts = [f"{rec['case']}"]
+    if "scene" in rec:
+        parts.append(f"{rec['scene']} tilt {rec['tilt']:g}")
+    parts.append(f"n={rec['n_edges']} dt={rec['dt']:g} E={rec['young']:.3g} {rec['mode']}")
+    if not rec["stable"]:
+        parts.append(f"UNSTABLE: {rec['note']}")
+    else:
+        m, r = rec["measured"], rec["reference"]
+        err = rec["rel_error"]
+        parts.append(f"measured {m:.6g} reference {r:.6g}" + (f" ({100 * err:+.3f} %)" if err is not None else ""))
+        if "at_rest" in rec:
+            parts.append("at rest" if rec["at_rest"] else "NOT at rest")
+    parts.append(f"{rec['us_per_step']:.0f} us/step" if rec["us_per_step"] else "")
+    return " | ".join(p for p in parts if p)
+
+
+def main(case: str, params: CaseParams, as_json: bool, stream=None) -> int:
+    """Run a case and print its records; returns a process exit code."""
+    stream = sys.stdout if stream is None else stream
+    records = run(case, params)
+    for rec in records:
+        print(json.dumps(rec) if as_json else format_record(rec), file=stream, flush=True)
+    return 0
+
+
+def params_from_args(args) -> CaseParams:
+    """CaseParams from parsed command-line options (see derods.__main__)."""
+    fields = {f.name for f in dataclasses.fields(CaseParams)}
+    return CaseParams(**{k: v for k, v in vars(args).items() if k in fields and v is not None})

@@ -1,0 +1,43 @@
+"""Benchmark records of derods/bench.py and the `derods bench` command."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from derods import bench
+from derods.__main__ import main
+
+FIELDS = {"case", "backend", "mujoco_version", "n_edges", "dt", "mode", "young", "shear", "length",
+          "radius", "density", "gravity", "measured", "reference", "rel_error", "stable", "steps",
+          "sim_s", "wall_s", "us_per_step", "active_terms"}
+
+
+def test_bench_cli_prints_one_json_record_per_run(capsys):
+    assert main(["bench", "cantilever", "--n-edges", "8", "--young", "1e9", "--json"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert len(lines) == 1
+    rec = json.loads(lines[0])
+    assert FIELDS <= set(rec)
+    assert rec["case"] == "cantilever" and rec["n_edges"] == 8 and rec["young"] == 1e9
+    assert rec["active_terms"] == ["bend_isotropic", "stretch"]
+    assert rec["stable"] and rec["steps"] > 0 and rec["us_per_step"] > 0
+
+
+def test_explicit_mode_at_a_large_step_is_recorded_unstable():
+    rec, = bench.cantilever(bench.CaseParams(n_edges=10, mode="explicit"))
+    assert rec["stable"] is False and "diverged at step" in rec["note"]
+    assert rec["measured"] is None and rec["rel_error"] is None
+
+
+@pytest.mark.parametrize("argv,match", [
+    (["bench", "cantilever", "--backend", "cable"], "backend 'cable' is not available yet"),
+    (["bench", "cantilever", "--dt", "0"], r"dt must be finite and > 0 \[s\]"),
+    (["bench", "cantilever", "--young", "-1"], r"young must be finite and > 0 \[Pa\]"),
+])
+def test_bench_bad_input_is_a_one_line_error(argv, match, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert __import__("re").search(match, err)
