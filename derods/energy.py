@@ -40,7 +40,7 @@ import numpy as np
 
 from . import frames as _frames
 from .geometry import JointGeometry, edges, joint_pairs, norm
-from .stencil import Hessian, scatter_edge_x, scatter_joint_theta, scatter_joint_x
+from .stencil import Hessian, add_optional, scatter_edge_x, scatter_joint_theta, scatter_joint_x
 
 
 class Configuration:
@@ -100,13 +100,7 @@ class Derivatives:
     hessian: Hessian | None = None
 
     def __add__(self, other: "Derivatives") -> "Derivatives":
-        def add(a, b):
-            if a is None:
-                return b
-            if b is None:
-                return a
-            return a + b
-
+        add = add_optional
         return Derivatives(
             self.energy + other.energy,
             add(self.grad_x, other.grad_x),

@@ -61,6 +61,15 @@ def scatter_joint_theta(g: np.ndarray, n_edges: int, closed: bool) -> np.ndarray
     return out
 
 
+def add_optional(a, b):
+    """a + b where either may be None (a term that does not produce that block)."""
+    if a is None:
+        return b
+    if b is None:
+        return a
+    return a + b
+
+
 @dataclass
 class Hessian:
     """Second derivatives of a rod energy, kept per stencil.
@@ -81,13 +90,7 @@ class Hessian:
     joint_tt: np.ndarray | None = None
 
     def __add__(self, other: "Hessian") -> "Hessian":
-        def add(a, b):
-            if a is None:
-                return b
-            if b is None:
-                return a
-            return a + b
-
+        add = add_optional
         return Hessian(
             self.n_vertices,
             self.closed,
