@@ -4,7 +4,7 @@ PYTHON ?= python3
 VENV := .venv
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test bench clean
+.PHONY: demo core-demo test bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -12,7 +12,12 @@ $(STAMP): pyproject.toml
 	$(VENV)/bin/python -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
+# The main job: drop rods onto a rigid scene and write out/drop.mp4 (headless).
 demo: $(STAMP)
+	mkdir -p out
+	$(VENV)/bin/python -m derods drop --out out/drop.mp4
+
+core-demo: $(STAMP)
 	$(VENV)/bin/python -m derods demo
 
 test: $(STAMP)

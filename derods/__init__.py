@@ -8,11 +8,17 @@ frame), :mod:`derods.shapes` (rest shapes and Bezier curves) and
 :mod:`derods.rod` (parameters, state and the active energy terms).
 """
 
-from .energy import Configuration, Derivatives
-from .rod import Material, Rod, RodState
-from .stencil import Hessian
-from .twist import TwistBoundary
-from . import frames, geometry, shapes
+# MuJoCo picks its OpenGL backend when first imported: choose EGL (headless) first
+# when there is no display, unless the user chose a backend.
+from .render import ensure_headless_gl as _ensure_headless_gl
+
+_ensure_headless_gl()
+
+from .energy import Configuration, Derivatives  # noqa: E402
+from .rod import Material, Rod, RodState  # noqa: E402
+from .stencil import Hessian  # noqa: E402
+from .twist import TwistBoundary  # noqa: E402
+from . import frames, geometry, shapes  # noqa: E402
 
 __version__ = "0.1.0"
 

@@ -1,6 +1,7 @@
 """The ``derods`` command line (``python -m derods``).
 
 Commands:
+  drop    drop rods onto a rigid scene and write an MP4 (headless).
   demo    build rods from the paper's test cases and print their frames and energies.
   bench   run a benchmark case (cantilever, frequency, drop) and print its records.
 """
@@ -69,6 +70,25 @@ def demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def drop(args: argparse.Namespace) -> int:
+    """``derods drop``: see :mod:`derods.drop`."""
+    from derods import render
+
+    render.ensure_headless_gl()
+    import derods
+    from derods import drop as drop_mod
+
+    mat = derods.Material(young=args.young, radius=args.radius, density=args.density)
+    params = drop_mod.DropParams(
+        scene=args.scene, rods=args.rods, shape=args.shape, n_edges=args.n_edges, length=args.length,
+        seconds=args.seconds, dt=args.dt, fps=args.fps, width=args.width, height=args.height,
+        camera=args.camera, material=mat, seed=args.seed)
+    summary = drop_mod.drop(params, args.out, progress=not args.quiet)
+    print(f"wrote {summary['out']}: {summary['frames']} frames, {summary['sim_s']:.2f} s simulated "
+          f"({summary['steps']} steps, {summary['mode']}), rods {', '.join(summary['rods'])}")
+    return 0
+
+
 def bench(args: argparse.Namespace) -> int:
     """``derods bench CASE``: see :mod:`derods.bench`."""
     from derods import bench as bench_mod
@@ -79,6 +99,27 @@ def bench(args: argparse.Namespace) -> int:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="derods", description="Discrete Elastic Rods on MuJoCo")
     sub = parser.add_subparsers(dest="command", required=True)
+    d = sub.add_parser("drop", help="drop rods onto a rigid scene and write an MP4 (headless)")
+    d.add_argument("--scene", default="box",
+                   help="floor, box, table_edge, stairs, pegs, halfpipe, rail, or an MJCF path (default box)")
+    d.add_argument("--rods", type=int, default=3, help="number of rods (default 3)")
+    d.add_argument("--shape", choices=["straight", "helix", "bezier"], default="straight")
+    d.add_argument("--n-edges", type=_positive_int, default=40, help="edges per rod (default 40)")
+    d.add_argument("--length", type=float, default=0.8, help="rod length [m] (default 0.8)")
+    d.add_argument("--seconds", type=float, default=4.0, help="simulated time [s] (default 4)")
+    d.add_argument("--dt", type=float, default=2e-3, help="time step [s] (default 2e-3)")
+    d.add_argument("--fps", type=float, default=30.0, help="video frames per second (default 30)")
+    d.add_argument("--width", type=int, default=960, help="video width [pixels] (default 960)")
+    d.add_argument("--height", type=int, default=540, help="video height [pixels] (default 540)")
+    d.add_argument("--camera", default=None, help="camera name (default: the scene's 'main')")
+    d.add_argument("--out", default="drop.mp4", help="output MP4 path (default drop.mp4)")
+    d.add_argument("--young", type=float, default=2e6, help="Young's modulus E [Pa] (default 2e6)")
+    d.add_argument("--radius", type=float, default=0.008, help="rod radius [m] (default 0.008)")
+    d.add_argument("--density", type=float, default=1100.0, help="density [kg/m^3] (default 1100)")
+    d.add_argument("--seed", type=int, default=0, help="seed of the rods' placement (default 0)")
+    d.add_argument("--quiet", action="store_true", help="no progress bar")
+    d.set_defaults(func=drop)
+
     p = sub.add_parser("demo", help="build rods from the paper's test cases and print frames and energies")
     p.add_argument("--n-edges", type=_positive_int, default=40, help="edges per rod (default 40)")
     p.add_argument("--young", type=float, default=1e7, help="Young's modulus E [Pa] (default 1e7)")
@@ -107,6 +148,9 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as err:
         print(f"derods {args.command}: error: {err}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"derods {args.command}: interrupted; no partial output was left", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":
