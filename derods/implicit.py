@@ -55,9 +55,11 @@ class ImplicitSystem:
         self.mass = mass
         self.mass_damping = mass_damping
         self.stiffness_damping = stiffness_damping
-        self.k_band = np.zeros((XX_BANDWIDTH + 1, self.n))
+        # The widest rod sets the band (rings, in their zig-zag order, are wider).
+        rows = max([XX_BANDWIDTH + 1] + [band.shape[0] for band in bands])
+        self.k_band = np.zeros((rows, self.n))
         for i, band in enumerate(bands):
-            self.k_band[:, offsets[i]:offsets[i + 1]] = band
+            self.k_band[: band.shape[0], offsets[i]:offsets[i + 1]] = band
         # Rank-one terms as full-length vectors (zero outside their rod).
         self.rank1 = []
         for i, r in enumerate(rank1):
@@ -109,11 +111,14 @@ class ImplicitSystem:
         return zb, corrections
 
     def solve(self, rhs: np.ndarray, extra_band: np.ndarray | None = None) -> np.ndarray:
-        """(A + E)^-1 rhs, E an optional extra lower band (9, n); rhs shape (n,) or (n, m)."""
+        """(A + E)^-1 rhs, E an optional extra lower band (k, n) with k <= the band of A;
+        rhs shape (n,) or (n, m)."""
         if extra_band is None:
             factor = self.factor()
         else:
-            factor = band_cholesky(self.a_band + extra_band)
+            ab = self.a_band.copy()
+            ab[: extra_band.shape[0]] += extra_band
+            factor = band_cholesky(ab)
         b = rhs if rhs.ndim == 2 else rhs[:, None]
         if not self.rank1:
             x = band_solve(factor, np.ascontiguousarray(b))

@@ -18,6 +18,7 @@ import numpy as np
 
 from . import _checks, energy, frames, geometry, twist
 from .energy import Configuration, Derivatives
+from .stencil import Hessian
 from .twist import TwistBoundary
 
 
@@ -132,16 +133,20 @@ class StepTerms:
     energy: elastic energy [J], shape (...).
     grad_x: dE/dx [N], shape (..., n_vertices, 3) (the elastic force is minus this).
     hessian_banded: positive semi-definite Hessian of stretch + bending in the lower
-        banded form of :func:`scipy.linalg.solveh_banded`, shape (..., 9, 3 n_vertices).
+        banded form of :func:`scipy.linalg.solveh_banded`, shape (..., 9, 3 n_vertices);
+        None for a ring, whose Hessian is banded only in another vertex order.
     twist: the reduced twist term (:class:`derods.twist.ReducedTwist`), whose
         Hessian c g g^T is a rank-one update of ``hessian_banded``; None without twist.
+    hessian: the same PSD Hessian per stencil (:class:`derods.stencil.Hessian`), from
+        the numpy path only (None from the compiled kernel).
     """
 
     state: RodState
     energy: np.ndarray
     grad_x: np.ndarray
-    hessian_banded: np.ndarray
+    hessian_banded: np.ndarray | None
     twist: twist.ReducedTwist | None
+    hessian: Hessian | None = None
 
 
 @dataclass(frozen=True)
@@ -353,9 +358,8 @@ class Rod:
             theta = red.theta
             grad = grad + red.grad_x
             e = e + red.energy
-        if self.closed:
-            raise NotImplementedError("closed rods have no banded Hessian; use derivatives()")
-        return StepTerms(RodState(x, u, t, theta), e, grad, d.hessian.xx_banded(), red)
+        band = None if self.closed else d.hessian.xx_banded()
+        return StepTerms(RodState(x, u, t, theta), e, grad, band, red, d.hessian)
 
     def _step_terms_kernel(self, state: RodState, x: np.ndarray) -> StepTerms:
         from . import _kernels

@@ -28,6 +28,24 @@ from .geometry import joint_vertex_index
 
 #: Sub-diagonals of the x-x Hessian of an open rod (a joint couples vertices k-1..k+1).
 XX_BANDWIDTH = 8
+#: Sub-diagonals of a ring's x-x Hessian in :func:`ring_order` (a joint's vertices lie
+#: within 4 places of each other there).
+RING_BANDWIDTH = 14
+
+
+def ring_order(n_vertices: int) -> np.ndarray:
+    """Vertex order 0, n-1, 1, n-2, 2, ... that makes a ring's Hessian banded.
+
+    In natural order a ring couples its last vertices to its first ones, which
+    no band holds; zig-zagging from both ends puts every ring neighbour within
+    two places, so the Hessian has :data:`RING_BANDWIDTH` sub-diagonals.
+    """
+    head = np.arange((n_vertices + 1) // 2)
+    tail = n_vertices - 1 - np.arange(n_vertices // 2)
+    out = np.empty(n_vertices, dtype=int)
+    out[0::2] = head
+    out[1::2] = tail
+    return out
 
 
 def scatter_joint_x(g: np.ndarray, n_vertices: int, closed: bool) -> np.ndarray:
@@ -158,6 +176,33 @@ class Hessian:
         if self.edge_xx is not None:
             _add_lower_band(ab, self.edge_xx, 6, n_stencils=nv - 1)
         return ab
+
+    def xx_banded_ordered(self, order: np.ndarray, bandwidth: int) -> np.ndarray:
+        """x-x block in lower banded form with the vertices taken in ``order`` (one rod).
+
+        order: vertex indices in the order of the rows, shape (n_vertices,), e.g.
+        :func:`ring_order` for a ring. bandwidth: sub-diagonals to keep; an entry
+        outside them raises ValueError. Returns shape (bandwidth + 1, 3 n_vertices).
+        """
+        position = np.empty(self.n_vertices, dtype=int)
+        position[order] = np.arange(self.n_vertices)
+        n = 3 * self.n_vertices
+        ab = np.zeros((bandwidth + 1) * n)
+        blocks = []
+        if self.edge_xx is not None:
+            blocks.append((self._edge_dofs(), self.edge_xx))
+        if self.joint_xx is not None:
+            blocks.append((self._joint_dofs()[0], self.joint_xx))
+        for dofs, vals in blocks:
+            pd = 3 * position[dofs // 3] + dofs % 3  # permuted dof of every stencil entry
+            rows = np.broadcast_to(pd[:, :, None], vals.shape)
+            cols = np.broadcast_to(pd[:, None, :], vals.shape)
+            lower = rows >= cols
+            d = (rows - cols)[lower]
+            if d.size and d.max() > bandwidth:
+                raise ValueError(f"an entry lies {d.max()} below the diagonal, beyond bandwidth {bandwidth}")
+            np.add.at(ab, d * n + cols[lower], vals[lower])
+        return ab.reshape(bandwidth + 1, n)
 
     def xx_sparse(self):
         """x-x block as a scipy.sparse CSR matrix (one rod, no batch dimensions)."""

@@ -41,7 +41,9 @@ import numpy as np
 
 from . import frames
 from . import contact
-from .implicit import ImplicitSystem, banded_matvec, restrict_band
+from .implicit import ImplicitSystem, restrict_band
+from .stencil import RING_BANDWIDTH, ring_order
+from .geometry import edges as _edges
 from .rod import Rod, RodState
 from .twist import TwistBoundary
 
@@ -90,9 +92,10 @@ class _Slot:
     rgba: tuple
     fixed: np.ndarray  # (n_vertices,) bool
     body_ids: np.ndarray = field(default=None)
-    dof_ids: np.ndarray = field(default=None)  # dofs of the free vertices, (3 n_free,)
-    qpos_ids: np.ndarray = field(default=None)  # their qpos entries, (3 n_free,)
+    dof_ids: np.ndarray = field(default=None)  # dofs of the free vertices in solve order, (3 n_free,)
+    qpos_ids: np.ndarray = field(default=None)  # their qpos entries in vertex order, (3 n_free,)
     free: slice = field(default=None)  # free vertex range
+    order: np.ndarray = field(default=None)  # free vertices in solve order (zig-zag on a ring)
     state: RodState = field(default=None)
     mass: np.ndarray = field(default=None)  # per free dof [kg]
 
@@ -191,8 +194,8 @@ class World:
         """
         if self._model is not None:
             raise RuntimeError("add rods before the world is compiled (before the first step)")
-        if rod.closed:
-            raise NotImplementedError("closed rods (rings) cannot be added to a World yet")
+        if rod.closed and (start != "free" or end != "free"):
+            raise ValueError("a ring has no ends: leave start and end 'free'")
         if rod.rest_x.ndim != 2:
             raise ValueError("add rods to a World one at a time (rest_x of shape (n_vertices, 3))")
         for key, val in (("start", start), ("end", end)):
@@ -207,7 +210,8 @@ class World:
         fixed = _held_vertices(rod.n_vertices, start, end)
         if fixed.all():
             raise ValueError(f"rod '{name}' has every vertex held; give it more edges")
-        rod = rod.with_boundary(_twist_boundary(rod, start, end, name))
+        if not rod.closed:
+            rod = rod.with_boundary(_twist_boundary(rod, start, end, name))
         self._slots.append(_Slot(name, rod, x0, start, end, tuple(rgba), fixed))
         return len(self._slots) - 1
 
@@ -234,18 +238,20 @@ class World:
             slot.body_ids = np.array([m.body(f"{slot.name}_{i}").id for i in range(slot.rod.n_vertices)])
             free = np.flatnonzero(~slot.fixed)
             slot.free = slice(int(free[0]), int(free[-1]) + 1)
-            slot.dof_ids = (m.body_dofadr[slot.body_ids[slot.free]][:, None] + np.arange(3)).ravel()
+            closed = slot.rod.closed
+            slot.order = ring_order(slot.rod.n_vertices) if closed else np.arange(slot.free.start, slot.free.stop)
+            slot.dof_ids = (m.body_dofadr[slot.body_ids[slot.order]][:, None] + np.arange(3)).ravel()
             jnt = m.body_jntadr[slot.body_ids[slot.free]][:, None] + np.arange(3)
             slot.qpos_ids = m.jnt_qposadr[jnt].ravel()
-            slot.mass = np.repeat(m.body_mass[slot.body_ids[slot.free]], 3)
+            slot.mass = np.repeat(m.body_mass[slot.body_ids[slot.order]], 3)
             x = slot.x0
-            t = frames.tangents(x, False)
-            state = RodState(x.copy(), frames.bishop_frames(x, False, slot.rod.u0), t, np.zeros(len(t)))
+            t = frames.tangents(x, closed)
+            state = RodState(x.copy(), frames.bishop_frames(x, closed, slot.rod.u0), t, np.zeros(len(t)))
             slot.state = slot.rod.advance(state, x)
         self._dofs = np.concatenate([s.dof_ids for s in self._slots])
         self._mass = np.concatenate([s.mass for s in self._slots])
         self._offsets = np.concatenate([[0], np.cumsum([len(s.dof_ids) for s in self._slots])]).astype(int)
-        self._free_bodies = np.concatenate([s.body_ids[s.free] for s in self._slots])
+        self._free_bodies = np.concatenate([s.body_ids[s.order] for s in self._slots])
         self._local_of_dof = np.full(m.nv, -1)
         self._local_of_dof[self._dofs] = np.arange(len(self._dofs))
         self._contact = np.zeros(len(self._dofs))
@@ -285,7 +291,8 @@ class World:
         flex.dim = 1
         flex.radius = r
         flex.vertbody = names
-        flex.elem = np.column_stack([np.arange(rod.n_edges), np.arange(1, rod.n_vertices)]).ravel().tolist()
+        j = np.arange(rod.n_edges)
+        flex.elem = np.column_stack([j, (j + 1) % rod.n_vertices]).ravel().tolist()
         flex.rgba = list(slot.rgba)
         c = self.contact
         # Collision work only where there is something to collide with.
@@ -301,15 +308,14 @@ class World:
         """2 / omega_max of the stiffest rod, omega_max^2 bounded by Gershgorin on M^-1 K."""
         limit = math.inf
         for slot in self._slots:
-            terms = slot.rod.step_terms(slot.state, slot.state.x)
-            lo, hi = 3 * slot.free.start, 3 * slot.free.stop
-            ab = np.abs(restrict_band(terms.hessian_banded, lo, hi))
+            band, rank1, _ = self._solve_terms(slot, slot.rod.step_terms(slot.state, slot.state.x))
+            ab = np.abs(band)
             rows = ab.sum(axis=0)
             for d in range(1, ab.shape[0]):
                 rows[d:] += ab[d, :-d]
-            if terms.twist is not None:
-                g = np.abs(terms.twist.g.reshape(-1)[lo:hi])
-                rows += terms.twist.c * g * g.sum()
+            if rank1 is not None:
+                g = np.abs(rank1[0])
+                rows += rank1[1] * g * g.sum()
             w2 = np.max(rows / slot.mass)
             if w2 > 0:
                 limit = min(limit, 2.0 / math.sqrt(w2))
@@ -372,7 +378,7 @@ class World:
         """Vertex velocities [m/s] of a rod, shape (n_vertices, 3) (zero where held)."""
         s = self._slot(rod)
         v = np.zeros((s.rod.n_vertices, 3))
-        v[s.free] = self.data.qvel[s.dof_ids].reshape(-1, 3)
+        v[s.order] = self.data.qvel[s.dof_ids].reshape(-1, 3)
         return v
 
     def contact_force(self, rod: int | str = 0) -> np.ndarray:
@@ -385,9 +391,9 @@ class World:
         out = np.zeros((s.rod.n_vertices, 3))
         if self.mode == "implicit":
             i = self._slots.index(s)
-            out[s.free] = self._contact[self._offsets[i]:self._offsets[i + 1]].reshape(-1, 3)
+            out[s.order] = self._contact[self._offsets[i]:self._offsets[i + 1]].reshape(-1, 3)
         else:
-            out[s.free] = self.data.qfrc_constraint[s.dof_ids].reshape(-1, 3)
+            out[s.order] = self.data.qfrc_constraint[s.dof_ids].reshape(-1, 3)
         return out
 
     def rod_state(self, rod: int | str = 0) -> RodState:
@@ -419,11 +425,10 @@ class World:
             self._check_strain(slot, x)
             terms = slot.rod.step_terms(slot.state, x)
             slot.state = terms.state
-            lo, hi = 3 * slot.free.start, 3 * slot.free.stop
-            grads.append(terms.grad_x.reshape(-1)[lo:hi])
-            bands.append(restrict_band(terms.hessian_banded, lo, hi))
-            tw = terms.twist
-            rank1.append(None if tw is None or tw.c == 0 else (tw.g.reshape(-1)[lo:hi], float(tw.c)))
+            band, r1, grad = self._solve_terms(slot, terms)
+            bands.append(band)
+            rank1.append(r1)
+            grads.append(grad)
         dofs, mass = self._dofs, self._mass
         v = d.qvel[dofs]
         system = ImplicitSystem(h, self._offsets, bands, rank1, mass, self.mass_damping,
@@ -439,6 +444,21 @@ class World:
             self._implicit_step(system, grad, v)
         self.n_steps += 1
         self._check_divergence(dofs)
+
+    @staticmethod
+    def _solve_terms(slot: _Slot, terms) -> tuple[np.ndarray, tuple | None, np.ndarray]:
+        """A rod's Hessian band, rank-one twist term and gradient over its free dofs,
+        in solve order (the zig-zag order on a ring)."""
+        tw = terms.twist
+        if slot.rod.closed:
+            band = terms.hessian.xx_banded_ordered(slot.order, RING_BANDWIDTH)
+            pick = lambda a: a.reshape(-1, 3)[slot.order].ravel()  # noqa: E731
+        else:
+            lo, hi = 3 * slot.free.start, 3 * slot.free.stop
+            band = restrict_band(terms.hessian_banded, lo, hi)
+            pick = lambda a: a.reshape(-1)[lo:hi]  # noqa: E731
+        rank1 = None if tw is None or tw.c == 0 else (pick(tw.g), float(tw.c))
+        return band, rank1, pick(terms.grad_x)
 
     def _implicit_step(self, system: ImplicitSystem, grad: np.ndarray, v: np.ndarray) -> None:
         """One implicit step: unconstrained solve, MuJoCo's forward pass (contacts and
@@ -483,7 +503,7 @@ class World:
         )
 
     def _check_strain(self, slot: _Slot, x: np.ndarray) -> None:
-        e = x[1:] - x[:-1]
+        e = _edges(x, slot.rod.closed)
         strain = np.max(np.abs(np.sqrt(np.einsum("ij,ij->i", e, e)) / slot.rod.rest_len - 1.0))
         if not np.isfinite(strain) or strain > MAX_STRAIN:
             self._fail(slot.name, f"edge strain {strain:.3g} exceeds {MAX_STRAIN:g}")
