@@ -15,6 +15,13 @@ Cases:
 * ``frequency``: the same rod without gravity released from a small bend;
   measured: first bending frequency [Hz] from the tip's zero crossings;
   reference: 1.8751^2 / (2 pi) sqrt(alpha / (rho A L^4)).
+* ``michell``: a naturally straight ring (circumference L) with imposed total
+  twist Theta, released from a slightly bent circle without gravity; Theta is
+  bisected between planar (the bend dies out) and buckled (it grows);
+  measured: the critical twist [rad]; reference: Michell's 2 pi sqrt(3) alpha / beta.
+* ``circle``: a rod clamped at one end, without gravity, under an end couple
+  M = 2 pi alpha / L on its last edge; measured: the distance from the tip to
+  the clamp over L (0 for a closed circle); reference: 0.
 * ``drop``: a free rod dropped from 0.5 m, flat and tilted by 0.3 rad, onto
   the floor and across the edge of a box (mjcf/floor.xml, mjcf/box.xml);
   measured: the deepest penetration [m] once the impact is over (from 0.5 s
@@ -38,10 +45,11 @@ import numpy as np
 
 from . import reference, shapes
 from .rod import Material, Rod
+from .twist import TwistBoundary
 from .world import DivergenceError, World
 
 MJCF_DIR = pathlib.Path(__file__).resolve().parents[1] / "mjcf"
-CASES = ("cantilever", "frequency", "drop")
+CASES = ("cantilever", "frequency", "drop", "michell", "circle")
 BACKENDS = ("der",)
 
 #: A dropped rod is at rest when no vertex moves faster than this [m/s].
@@ -239,7 +247,106 @@ def drop(p: CaseParams, sim_time: float = 3.0, mass_damping: float = 2.0) -> lis
     return out
 
 
-RUNNERS = {"cantilever": cantilever, "frequency": frequency, "drop": drop}
+def _out_of_plane(x: np.ndarray) -> float:
+    """Distance [m] of the vertices from their best-fit plane (rms)."""
+    c = x - x.mean(axis=0)
+    return float(np.linalg.svd(c, compute_uv=False)[-1] / math.sqrt(len(x)))
+
+
+def ring_buckles(p: CaseParams, total_twist: float, perturbation: float = 1e-3) -> tuple[bool, World]:
+    """Whether a twisted ring leaves its plane. The circle is bent out of plane by
+    ``perturbation`` times its radius (modes 2 and 3) and run for up to 40 bending
+    times R^2 sqrt(rho A / alpha). It has buckled if the bend exceeds 3 times its start,
+    or if it still grows: larger over the last 10 bending times than over the 10 before.
+    (Near the threshold the growth is slow; a bound on the bend alone biases the
+    threshold upwards.)"""
+    mat = p.material
+    radius = p.length / (2 * math.pi)
+    x = shapes.circle(radius, p.n_edges)
+    rod = Rod(x, mat, closed=True, natural_curvature=False,
+              boundary=TwistBoundary("ring", total_twist=total_twist))
+    world = World(dt=p.dt, gravity=(0.0, 0.0, 0.0), mode=p.mode)
+    world.add_rod(rod, "ring")
+    phi = 2 * math.pi * np.arange(p.n_edges) / p.n_edges
+    xp = x.copy()
+    xp[:, 2] += perturbation * radius * (np.sin(2 * phi) + 0.1 * np.cos(3 * phi))
+    world.set_positions("ring", xp)
+    start = _out_of_plane(world.positions("ring"))
+    t_bend = radius**2 * math.sqrt(mat.line_density / mat.alpha)
+    chunk = max(1, int(round(t_bend / p.dt)))
+    bend = []
+    for _ in range(40):
+        world.step(chunk)
+        bend.append(_out_of_plane(world.positions("ring")))
+        if bend[-1] > 3 * start:
+            return True, world
+    return max(bend[30:]) > max(bend[20:30]), world
+
+
+def michell(p: CaseParams, tol: float = 0.002) -> list[dict]:
+    """Critical twist of a naturally straight ring by bisection (REFERENCE.md case 5)."""
+    mat = p.material
+    ref = 2 * math.pi * math.sqrt(3) * mat.alpha / mat.beta
+    lo, hi = 0.5 * ref, 1.5 * ref
+    t0 = time.perf_counter()
+    stable, note, steps, world, trials = True, "", 0, None, 0
+    try:
+        buckled_lo, world = ring_buckles(p, lo)
+        buckled_hi, world = ring_buckles(p, hi)
+        trials = 2
+        if buckled_lo or not buckled_hi:
+            raise RuntimeError(f"no threshold between {lo:.4g} and {hi:.4g} rad (buckled: {buckled_lo}, {buckled_hi})")
+        while hi - lo > tol * ref:
+            mid = 0.5 * (lo + hi)
+            buckled, world = ring_buckles(p, mid)
+            steps += world.n_steps
+            trials += 1
+            lo, hi = (lo, mid) if buckled else (mid, hi)
+        measured = 0.5 * (lo + hi)
+    except (DivergenceError, RuntimeError) as err:
+        stable, note, measured = False, str(err), None
+    wall = time.perf_counter() - t0
+    rec = _record("michell", p, world, measured, ref, stable, wall, beta_over_alpha=mat.beta / mat.alpha,
+                  bracket=[lo, hi], trials=trials, note=note)
+    rec["steps"], rec["sim_s"] = steps, steps * p.dt
+    rec["us_per_step"] = 1e6 * wall / steps if steps else None
+    return [rec]
+
+
+def circle(p: CaseParams, max_time: float = 300.0) -> list[dict]:
+    """A clamped rod curled by the end couple 2 pi alpha / L (REFERENCE.md case 3)."""
+    mat = p.material
+    moment = 2 * math.pi * mat.alpha / p.length
+    rod = Rod(shapes.cantilever(p.length, p.n_edges, start=(0.0, 0.0, 1.0)), mat)
+    world = World(dt=p.dt, gravity=(0.0, 0.0, 0.0), mode=p.mode, mass_damping=10.0)
+    world.add_rod(rod, "rod", start="clamp")
+    tip = world.model.body(f"rod_{p.n_edges}").id
+    pre = world.model.body(f"rod_{p.n_edges - 1}").id
+    t0 = time.perf_counter()
+    stable, note, measured = True, "", None
+    try:
+        while world.time < max_time:
+            for _ in range(50):
+                # A couple on the last edge, in the xz plane, following the edge as it turns.
+                x = world.positions("rod")
+                e = x[-1] - x[-2]
+                force = moment / float(e @ e) * np.array([-e[2], 0.0, e[0]])
+                world.data.xfrc_applied[tip, :3] = force
+                world.data.xfrc_applied[pre, :3] = -force
+                world.step()
+            if np.max(np.abs(world.velocities("rod"))) < SETTLE_SPEED * p.length:
+                break
+        measured = float(np.linalg.norm(world.positions("rod")[-1] - (0.0, 0.0, 1.0)) / p.length)
+    except DivergenceError as err:
+        stable, note = False, str(err)
+    wall = time.perf_counter() - t0
+    rec = _record("circle", p, world, measured, 0.0, stable, wall, note=note)
+    rec["rel_error"] = measured  # already relative to L
+    return [rec]
+
+
+RUNNERS = {"cantilever": cantilever, "frequency": frequency, "drop": drop, "michell": michell,
+           "circle": circle}
 
 
 def run(case: str, params: CaseParams) -> list[dict]:

@@ -203,3 +203,33 @@ def turning_angles(x: np.ndarray, closed: bool) -> np.ndarray:
     x: vertex positions [m], shape (..., n_vertices, 3).
     """
     return JointGeometry(*joint_pairs(edges(x, closed), closed)).turning_angle
+
+
+def writhe(x: np.ndarray) -> float:
+    """Writhe Wr of a closed polygon (dimensionless), shape (n_vertices, 3) [m].
+
+    The Gauss double integral summed exactly over pairs of edges: each pair
+    contributes the signed solid angle it subtends over 4 pi (Klenin and
+    Langowski, Biopolymers 2000). With the twist Tw (in turns) of a ring,
+    Tw + Wr is the linking number, which is conserved while the ring does not
+    pass through itself (Calugareanu).
+    """
+    p1 = x
+    p2 = np.roll(x, -1, axis=0)
+    n = len(x)
+    i, j = np.triu_indices(n, k=2)
+    keep = ~((i == 0) & (j == n - 1))  # the last edge is adjacent to the first
+    i, j = i[keep], j[keep]
+    a, b, c, d = p1[i], p2[i], p1[j], p2[j]
+    r13, r14, r23, r24 = c - a, d - a, c - b, d - b
+
+    def unit_cross(u, v):
+        w = np.cross(u, v)
+        return w / np.maximum(norm(w), 1e-300)[:, None]
+
+    n1, n2 = unit_cross(r13, r14), unit_cross(r14, r24)
+    n3, n4 = unit_cross(r24, r23), unit_cross(r23, r13)
+    dot = lambda u, v: np.clip(np.einsum("ij,ij->i", u, v), -1.0, 1.0)  # noqa: E731
+    omega = np.arcsin(dot(n1, n2)) + np.arcsin(dot(n2, n3)) + np.arcsin(dot(n3, n4)) + np.arcsin(dot(n4, n1))
+    sign = np.sign(np.einsum("ij,ij->i", np.cross(d - c, b - a), r13))
+    return float(np.sum(omega * sign) / (2.0 * np.pi))
