@@ -3,7 +3,7 @@
 Commands:
   drop    drop rods onto a rigid scene and write an MP4 (headless).
   demo    build rods from the paper's test cases and print their frames and energies.
-  bench   run a benchmark case (cantilever, frequency, drop, michell, circle) and print records.
+  bench   run a benchmark case (cantilever, frequency, drop, michell, circle, twist) and print records.
 """
 
 from __future__ import annotations
@@ -128,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
     p.set_defaults(func=demo)
 
     b = sub.add_parser("bench", help="run a benchmark case and print one record per run")
-    b.add_argument("case", choices=["cantilever", "frequency", "drop", "michell", "circle"])
+    b.add_argument("case", choices=["cantilever", "frequency", "drop", "michell", "circle", "twist"])
     b.add_argument("--backend", default="der", help="der (default)")
     b.add_argument("--n-edges", type=_positive_int, default=None, help="edges per rod (default 20)")
     b.add_argument("--dt", type=float, default=None, help="time step [s] (default 1e-2)")

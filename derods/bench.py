@@ -22,6 +22,10 @@ Cases:
 * ``circle``: a rod clamped at one end, without gravity, under an end couple
   M = 2 pi alpha / L on its last edge; measured: the distance from the tip to
   the clamp over L (0 for a closed circle); reference: 0.
+* ``twist``: a straight rod clamped at one end to the world and at the other
+  to a body on a hinge along the rod, which a position servo turns k = 2 times;
+  measured: the torque the servo needs to hold it [N m]; reference: beta Theta / L
+  with Theta the angle the body turned (the servo lags its target by torque / kp).
 * ``drop``: a free rod dropped from 0.5 m, flat and tilted by 0.3 rad, onto
   the floor and across the edge of a box (mjcf/floor.xml, mjcf/box.xml);
   measured: the deepest penetration [m] once the impact is over (from 0.5 s
@@ -49,7 +53,7 @@ from .twist import TwistBoundary
 from .world import DivergenceError, World
 
 MJCF_DIR = pathlib.Path(__file__).resolve().parents[1] / "mjcf"
-CASES = ("cantilever", "frequency", "drop", "michell", "circle")
+CASES = ("cantilever", "frequency", "drop", "michell", "circle", "twist")
 BACKENDS = ("der",)
 
 #: A dropped rod is at rest when no vertex moves faster than this [m/s].
@@ -345,8 +349,55 @@ def circle(p: CaseParams, max_time: float = 300.0) -> list[dict]:
     return [rec]
 
 
+def twister_world(p: CaseParams, servo: bool = True) -> World:
+    """A rod clamped between the world (at x = 0) and a body on a hinge about x (at x = L)."""
+    mat = p.material
+    spec = mujoco.MjSpec()
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    turner = spec.worldbody.add_body(name="turner", pos=[p.length, 0.0, 1.0])
+    turner.add_joint(name="turn", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[1.0, 0.0, 0.0])
+    # A disk, polar moment of inertia 0.5 m r^2 = 0.2 kg m^2 about the rod axis: heavy
+    # enough that the stiff servo (kp h^2 / I = 1 at h = 1e-2) integrates stably.
+    turner.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[0.2, 0.01, 0.0],
+                    euler=[0.0, math.pi / 2, 0.0], mass=10.0, contype=0, conaffinity=0)
+    if servo:
+        act = spec.add_actuator(name="servo", target="turn", trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        act.set_to_position(kp=2000.0, kv=100.0)
+    world = World(spec, dt=p.dt, gravity=(0.0, 0.0, 0.0), mode=p.mode, mass_damping=5.0)
+    rod = Rod(shapes.cantilever(p.length, p.n_edges, start=(0.0, 0.0, 1.0), clamped_ends=2), mat,
+              boundary=TwistBoundary("clamped", 0.0, 0.0))
+    world.add_rod(rod, "rod", start="clamp", end="clamp", end_body="turner")
+    world.compile()
+    return world
+
+
+def twist(p: CaseParams, turns: float = 2.0, ramp: float = 2.0, hold: float = 3.0) -> list[dict]:
+    """Reaction torque of a rod twisted by a servo-driven clamp (beta Theta / L)."""
+    mat = p.material
+    theta = 2 * math.pi * turns
+    world = twister_world(p)
+    ref = None
+    t0 = time.perf_counter()
+    stable, note, measured = True, "", None
+    try:
+        n_ramp = int(round(ramp / p.dt))
+        for k in range(n_ramp):
+            world.data.ctrl[0] = theta * (k + 1) / n_ramp
+            world.step()
+        world.step(int(round(hold / p.dt)))
+        measured = float(world.data.actuator_force[0])
+        turned = float(world.data.qpos[world.model.joint("turn").qposadr[0]])
+        ref = mat.beta * turned / p.length
+        twist_in_rod = float(world.rod_state("rod").theta[-1] - world.rod_state("rod").theta[0])
+    except DivergenceError as err:
+        stable, note, twist_in_rod = False, str(err), None
+    wall = time.perf_counter() - t0
+    return [_record("twist", p, world, measured, ref, stable, wall, turns=turns,
+                    turned=turned if stable else None, twist_in_rod=twist_in_rod, note=note)]
+
+
 RUNNERS = {"cantilever": cantilever, "frequency": frequency, "drop": drop, "michell": michell,
-           "circle": circle}
+           "circle": circle, "twist": twist}
 
 
 def run(case: str, params: CaseParams) -> list[dict]:

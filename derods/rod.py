@@ -326,20 +326,26 @@ class Rod:
         straight, open rods)."""
         return not self.closed and "bend_material" not in self.active_terms
 
-    def step_terms(self, state: RodState, x: np.ndarray, use_kernel: bool | None = None) -> StepTerms:
+    def step_terms(self, state: RodState, x: np.ndarray, use_kernel: bool | None = None,
+                   boundary: TwistBoundary | None = None) -> StepTerms:
         """Advance to positions ``x`` and evaluate what an implicit step needs.
 
         state: the previous state (its frames are transported to ``x``).
         x: new vertex positions [m], shape (..., n_vertices, 3).
         use_kernel: force (True) or forbid (False) the compiled kernel; None picks it
             whenever :attr:`has_kernel`. Both give the same numbers (to round-off).
+        boundary: this step's twist boundary, when clamps move (default: ``self.boundary``);
+            it must be of the same kind.
         """
+        if boundary is not None and boundary.kind != self.boundary.kind:
+            raise ValueError(f"boundary kind {boundary.kind!r} differs from the rod's {self.boundary.kind!r}")
+        bd = self.boundary if boundary is None else boundary
         if use_kernel is None:
             use_kernel = self.has_kernel
         if use_kernel and not self.has_kernel:
             raise ValueError("the compiled kernel covers isotropic, naturally straight, open rods only")
         if use_kernel:
-            return self._step_terms_kernel(state, x)
+            return self._step_terms_kernel(state, x, bd)
         if "bend_material" in self.active_terms:
             raise NotImplementedError(
                 "step_terms for anisotropic or naturally curved rods needs the reduced Hessian "
@@ -354,14 +360,14 @@ class Rod:
         d = self._terms(cfg, 2, True, names)
         grad, e = d.grad_x, d.energy
         if "twist" in self.active_terms:
-            red = twist.reduce_isotropic(cfg, self.vlen, self.material.beta, self.boundary, self.mbar)
+            red = twist.reduce_isotropic(cfg, self.vlen, self.material.beta, bd, self.mbar)
             theta = red.theta
             grad = grad + red.grad_x
             e = e + red.energy
         band = None if self.closed else d.hessian.xx_banded()
         return StepTerms(RodState(x, u, t, theta), e, grad, band, red, d.hessian)
 
-    def _step_terms_kernel(self, state: RodState, x: np.ndarray) -> StepTerms:
+    def _step_terms_kernel(self, state: RodState, x: np.ndarray, bd: TwistBoundary) -> StepTerms:
         from . import _kernels
 
         batch = x.shape[:-2]
@@ -379,7 +385,6 @@ class Rod:
         grad, g_tw = np.empty((n, nv, 3)), np.empty((n, nv, 3))
         ab = np.empty((n, 9, 3 * nv))
         energy, lam, coef = np.empty(n), np.empty(n), np.empty(n)
-        bd = self.boundary
         clamped = bd.kind == "clamped"
         anchor_last = bd.kind == "free" and bd.theta_first is None and bd.theta_last is not None
         _kernels.step_batch(

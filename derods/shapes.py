@@ -169,18 +169,23 @@ def bezier(control_points, n_edges: int, continuity: str = "C1") -> np.ndarray:
     return bezier_eval(p, np.interp(target, s, u))
 
 
-def cantilever(length: float, n_edges: int, start=(0.0, 0.0, 0.0), direction=(1.0, 0.0, 0.0)) -> np.ndarray:
-    """A straight rod to be clamped at ``start``, with the clamp at the middle of edge 0.
+def cantilever(length: float, n_edges: int, start=(0.0, 0.0, 0.0), direction=(1.0, 0.0, 0.0),
+               clamped_ends: int = 1) -> np.ndarray:
+    """A straight rod to be clamped at ``start`` (and at its far end), clamps at edge middles.
 
     A discrete clamp holds a whole edge, and acts where the material frame of
     that edge sits: at its middle. So the first edge reaches h/2 into the clamp
     and the rod extends ``length`` [m] beyond ``start``: h = length / (n - 1/2).
-    With lumped masses this makes the static tip error O(h^2) instead of O(h).
+    With ``clamped_ends=2`` the last edge reaches h/2 into a second clamp at
+    distance ``length``: h = length / (n - 1). With lumped masses this makes the
+    static tip error O(h^2) instead of O(h).
     Returns vertex positions [m], shape (n_edges + 1, 3).
     """
     _checks.positive("length", length, "m")
     n = _count("n_edges", n_edges, 2)
     d = _unit("direction", direction)
-    h = length / (n - 0.5)
+    if clamped_ends not in (1, 2):
+        raise ValueError(f"clamped_ends must be 1 or 2, got {clamped_ends!r}")
+    h = length / (n - 0.5) if clamped_ends == 1 else length / (n - 1)
     s = -0.5 * h + h * np.arange(n + 1)
     return np.asarray(start, dtype=float) + s[:, None] * d

@@ -98,6 +98,11 @@ class _Slot:
     order: np.ndarray = field(default=None)  # free vertices in solve order (zig-zag on a ring)
     state: RodState = field(default=None)
     mass: np.ndarray = field(default=None)  # per free dof [kg]
+    bodies: dict = field(default_factory=dict)  # end -> name of the MuJoCo body holding it
+    held: dict = field(default_factory=dict)  # end -> vertex indices held by that end
+    director: dict = field(default_factory=dict)  # end -> clamp's material director in body frame
+    theta_end: dict = field(default_factory=dict)  # end -> unwrapped twist angle of the clamped edge
+    reaction: np.ndarray = field(default=None)  # what derods last added to qfrc_applied
 
 
 def _held_vertices(n_vertices: int, start: str, end: str) -> np.ndarray:
@@ -183,14 +188,19 @@ class World:
 
     # -- building ------------------------------------------------------------
     def add_rod(self, rod: Rod, name: str | None = None, *, start: str = "free", end: str = "free",
-                x: np.ndarray | None = None, rgba=(0.85, 0.25, 0.15, 1.0)) -> int:
+                x: np.ndarray | None = None, rgba=(0.85, 0.25, 0.15, 1.0), start_body: str | None = None,
+                end_body: str | None = None) -> int:
         """Add a rod; returns its index.
 
-        rod: the :class:`derods.Rod` (open rods; rings are not supported in a world yet).
+        rod: the :class:`derods.Rod`, open or closed (a ring: ends stay "free").
         start, end: "free", "pin" (the end vertex held in place) or "clamp" (the end
             edge held in place and its material frame fixed; the continuum clamp
             then sits at the middle of that edge, see :func:`derods.shapes.cantilever`).
         x: initial vertex positions [m], shape (n_vertices, 3); default ``rod.rest_x``.
+        start_body, end_body: name of a MuJoCo body of the scene that holds that end
+            (default: the world). The end then moves with the body, a clamp turns its
+            material frame with the body, and the body feels the rod's force and
+            (through a clamp) its bending and twisting moments.
         """
         if self._model is not None:
             raise RuntimeError("add rods before the world is compiled (before the first step)")
@@ -210,9 +220,24 @@ class World:
         fixed = _held_vertices(rod.n_vertices, start, end)
         if fixed.all():
             raise ValueError(f"rod '{name}' has every vertex held; give it more edges")
+        bodies = {}
+        for key, body, kind in (("start", start_body, start), ("end", end_body, end)):
+            if body is None:
+                continue
+            if kind == "free":
+                raise ValueError(f"{key}_body={body!r} needs {key}='pin' or 'clamp'")
+            if self.spec.body(body) is None:
+                names = [b.name for b in self.spec.bodies if b.name]
+                raise ValueError(f"{key}_body {body!r} is not a body of the scene; bodies: {names}")
+            bodies[key] = body
         if not rod.closed:
             rod = rod.with_boundary(_twist_boundary(rod, start, end, name))
-        self._slots.append(_Slot(name, rod, x0, start, end, tuple(rgba), fixed))
+        slot = _Slot(name, rod, x0, start, end, tuple(rgba), fixed)
+        slot.bodies = bodies
+        n_held = {"free": 0, "pin": 1, "clamp": 2}
+        nv = rod.n_vertices
+        slot.held = {"start": np.arange(n_held[start]), "end": np.arange(nv - n_held[end], nv)}
+        self._slots.append(slot)
         return len(self._slots) - 1
 
     def _scene_has_obstacles(self) -> bool:
@@ -225,8 +250,18 @@ class World:
         if not self._slots:
             raise ValueError("the world has no rods; add one with add_rod()")
         collide = self._scene_has_obstacles()
+        poses = {}
+        if any(slot.bodies for slot in self._slots):
+            # World poses of the bodies that hold rod ends, at the scene's initial state.
+            base = self.spec.compile()
+            bdata = mujoco.MjData(base)
+            mujoco.mj_kinematics(base, bdata)
+            for slot in self._slots:
+                for body in slot.bodies.values():
+                    b = base.body(body).id
+                    poses[body] = (bdata.xpos[b].copy(), bdata.xmat[b].reshape(3, 3).copy())
         for slot in self._slots:
-            self._add_to_spec(slot, collide)
+            self._add_to_spec(slot, collide, poses)
         with warnings.catch_warnings():
             # Our flexes carry no MuJoCo elasticity by design: derods supplies it.
             warnings.filterwarnings("ignore", message=".*has no equality constraints or passive forces")
@@ -248,6 +283,16 @@ class World:
             t = frames.tangents(x, closed)
             state = RodState(x.copy(), frames.bishop_frames(x, closed, slot.rod.u0), t, np.zeros(len(t)))
             slot.state = slot.rod.advance(state, x)
+            slot.reaction = np.zeros(m.nv)
+            m1 = slot.state.u  # theta = 0 at the start: the material frame is the reference frame
+            for key, body in slot.bodies.items():
+                kind = slot.start if key == "start" else slot.end
+                if kind == "clamp":
+                    edge = 0 if key == "start" else slot.rod.n_edges - 1
+                    rmat = self._data.xmat[m.body(body).id].reshape(3, 3)
+                    slot.director[key] = rmat.T @ m1[edge]
+                    slot.theta_end[key] = float(slot.state.theta[edge])
+        self._moving_clamps = any(slot.bodies for slot in self._slots)
         self._dofs = np.concatenate([s.dof_ids for s in self._slots])
         self._mass = np.concatenate([s.mass for s in self._slots])
         self._offsets = np.concatenate([[0], np.cumsum([len(s.dof_ids) for s in self._slots])]).astype(int)
@@ -271,13 +316,22 @@ class World:
             )
         self._badqacc = self._data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
 
-    def _add_to_spec(self, slot: _Slot, collide: bool) -> None:
+    def _add_to_spec(self, slot: _Slot, collide: bool, poses: dict) -> None:
         rod = slot.rod
         mass = rod.vertex_mass
         r = rod.material.radius
+        holder = {}
+        for key, body in slot.bodies.items():
+            for i in slot.held[key]:
+                holder[int(i)] = body
         names = []
         for i, xi in enumerate(slot.x0):
-            body = self.spec.worldbody.add_body(name=f"{slot.name}_{i}", pos=xi)
+            if i in holder:
+                # A vertex held by a body rides on it, placed in the body's frame.
+                p, rmat = poses[holder[i]]
+                body = self.spec.body(holder[i]).add_body(name=f"{slot.name}_{i}", pos=rmat.T @ (xi - p))
+            else:
+                body = self.spec.worldbody.add_body(name=f"{slot.name}_{i}", pos=xi)
             body.mass = float(mass[i])
             body.inertia = [0.5 * float(mass[i]) * r * r] * 3
             body.explicitinertial = True
@@ -357,6 +411,9 @@ class World:
         # state *before* the integration, one step behind.
         x = slot.x0.copy()
         x[slot.free] += self.data.qpos[slot.qpos_ids].reshape(-1, 3)
+        for key in slot.bodies:
+            # Held by a moving body (xpos is current: _step_once runs mj_kinematics first).
+            x[slot.held[key]] = self.data.xpos[slot.body_ids[slot.held[key]]]
         return x
 
     def set_positions(self, rod: int | str, x: np.ndarray) -> None:
@@ -420,11 +477,16 @@ class World:
         m, d = self._model, self._data
         h = m.opt.timestep
         bands, rank1, grads = [], [], []
+        if self._moving_clamps:
+            mujoco.mj_kinematics(m, d)  # after mj_step, xpos still shows the previous state
         for slot in self._slots:
             x = self._positions(slot)
             self._check_strain(slot, x)
-            terms = slot.rod.step_terms(slot.state, x)
+            boundary = self._clamp_boundary(slot, x) if slot.director else None
+            terms = slot.rod.step_terms(slot.state, x, boundary=boundary)
             slot.state = terms.state
+            if slot.bodies:
+                self._apply_reaction(slot, x, terms)
             band, r1, grad = self._solve_terms(slot, terms)
             bands.append(band)
             rank1.append(r1)
@@ -444,6 +506,42 @@ class World:
             self._implicit_step(system, grad, v)
         self.n_steps += 1
         self._check_divergence(dofs)
+
+    def _clamp_boundary(self, slot: _Slot, x: np.ndarray) -> TwistBoundary:
+        """This step's twist boundary: clamped edges turn with the bodies holding them."""
+        t = frames.tangents(x, False)
+        u = frames.time_parallel_transport(slot.state.u, slot.state.t, t)
+        for key, d_body in slot.director.items():
+            edge = 0 if key == "start" else slot.rod.n_edges - 1
+            rmat = self._data.xmat[self._model.body(slot.bodies[key]).id].reshape(3, 3)
+            angle = float(frames.signed_angle(u[edge], rmat @ d_body, t[edge]))
+            # Unwrap: a clamp turned many times carries many turns of twist.
+            prev = slot.theta_end[key]
+            slot.theta_end[key] = prev + (angle - prev + np.pi) % (2 * np.pi) - np.pi
+        bd = slot.rod.boundary
+        if bd.kind == "clamped":
+            return TwistBoundary("clamped", slot.theta_end.get("start", bd.theta_first),
+                                 slot.theta_end.get("end", bd.theta_last))
+        return TwistBoundary("free", theta_first=slot.theta_end.get("start", bd.theta_first),
+                             theta_last=slot.theta_end.get("end", bd.theta_last))
+
+    def _apply_reaction(self, slot: _Slot, x: np.ndarray, terms) -> None:
+        """The rod's force and twisting moment on the bodies holding its ends (explicit)."""
+        m, d = self._model, self._data
+        qfrc = np.zeros(m.nv)
+        grad = terms.grad_x
+        lam = 0.0 if terms.twist is None else float(terms.twist.lam)
+        t = frames.tangents(x, False)
+        for key, body in slot.bodies.items():
+            b = m.body(body).id
+            for i in slot.held[key]:
+                mujoco.mj_applyFT(m, d, -grad[i], np.zeros(3), x[i], b, qfrc)
+            if key in slot.director and lam:
+                # dE/dtheta_end = +lam (end) or -lam (start): the rod resists the turn.
+                torque = -lam * t[-1] if key == "end" else lam * t[0]
+                mujoco.mj_applyFT(m, d, np.zeros(3), torque, x[slot.held[key][0]], b, qfrc)
+        d.qfrc_applied[:] += qfrc - slot.reaction
+        slot.reaction = qfrc
 
     @staticmethod
     def _solve_terms(slot: _Slot, terms) -> tuple[np.ndarray, tuple | None, np.ndarray]:
