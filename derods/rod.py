@@ -139,6 +139,8 @@ class StepTerms:
         Hessian c g g^T is a rank-one update of ``hessian_banded``; None without twist.
     hessian: the same PSD Hessian per stencil (:class:`derods.stencil.Hessian`), from
         the numpy path only (None from the compiled kernel).
+    grad_theta: dE/dtheta [N m] at the solved twist angles, where the rod does not
+        reduce its twist in closed form (zero on free angles; the clamps' moments).
     """
 
     state: RodState
@@ -147,6 +149,7 @@ class StepTerms:
     hessian_banded: np.ndarray | None
     twist: twist.ReducedTwist | None
     hessian: Hessian | None = None
+    grad_theta: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -270,11 +273,15 @@ class Rod:
             new.theta = self.solve_twist(new)
         return new
 
-    def solve_twist(self, state: RodState) -> np.ndarray:
-        """Twist angles [rad] that make the energy stationary, shape (..., n_edges)."""
+    def solve_twist(self, state: RodState, boundary: TwistBoundary | None = None) -> np.ndarray:
+        """Twist angles [rad] that make the energy stationary, shape (..., n_edges).
+
+        boundary: this step's boundary (moving clamps); default ``self.boundary``.
+        """
+        bd = self.boundary if boundary is None else boundary
         if "bend_material" not in self.active_terms:
             ref = frames.reference_twist(state.u, state.t, self.closed)
-            theta, _ = twist.solve_isotropic(ref, self.vlen, self.material.beta, self.boundary, self.mbar)
+            theta, _ = twist.solve_isotropic(ref, self.vlen, self.material.beta, bd, self.mbar)
             return theta
         if state.x.ndim > 2:
             raise ValueError("the Newton twist solve takes one rod at a time; loop over the batch")
@@ -283,7 +290,12 @@ class Rod:
             cfg = Configuration(state.x, self.closed, state.u, theta)
             return self._terms(cfg, order, psd=False, names=("bend_material", "twist"))
 
-        return twist.solve_newton(theta_energy, state.theta, self.closed, self.boundary)
+        theta0 = np.array(state.theta, dtype=float)
+        if bd.theta_first is not None:
+            theta0[0] = bd.theta_first
+        if bd.theta_last is not None:
+            theta0[-1] = bd.theta_last
+        return twist.solve_newton(theta_energy, theta0, self.closed, bd)
 
     # -- energy --------------------------------------------------------------
     def _terms(self, cfg: Configuration, order: int, psd: bool, names) -> Derivatives:
@@ -347,10 +359,7 @@ class Rod:
         if use_kernel:
             return self._step_terms_kernel(state, x, bd)
         if "bend_material" in self.active_terms:
-            raise NotImplementedError(
-                "step_terms for anisotropic or naturally curved rods needs the reduced Hessian "
-                "of the Newton twist solve; use derivatives() meanwhile"
-            )
+            return self._step_terms_material(state, x, bd)
         t = frames.tangents(x, self.closed)
         u = frames.time_parallel_transport(state.u, state.t, t)
         cfg = Configuration(x, self.closed, u, state.theta)
@@ -366,6 +375,20 @@ class Rod:
             e = e + red.energy
         band = None if self.closed else d.hessian.xx_banded()
         return StepTerms(RodState(x, u, t, theta), e, grad, band, red, d.hessian)
+
+    def _step_terms_material(self, state: RodState, x: np.ndarray, bd: TwistBoundary) -> StepTerms:
+        """step_terms for anisotropic or naturally curved rods: Newton twist solve, then
+        every term at the solved theta. The Hessian is the x-x block at fixed theta, which
+        overestimates the stiffness that a relaxing material frame leaves (more damping
+        in the implicit step, never less stability)."""
+        t = frames.tangents(x, self.closed)
+        u = frames.time_parallel_transport(state.u, state.t, t)
+        theta = self.solve_twist(RodState(x, u, t, state.theta), bd)
+        cfg = Configuration(x, self.closed, u, theta)
+        d = self._terms(cfg, 2, True, self.active_terms)
+        band = None if self.closed else d.hessian.xx_banded()
+        return StepTerms(RodState(x, u, t, theta), d.energy, d.grad_x, band, None, d.hessian,
+                         grad_theta=d.grad_theta)
 
     def _step_terms_kernel(self, state: RodState, x: np.ndarray, bd: TwistBoundary) -> StepTerms:
         from . import _kernels

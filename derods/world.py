@@ -530,16 +530,21 @@ class World:
         m, d = self._model, self._data
         qfrc = np.zeros(m.nv)
         grad = terms.grad_x
-        lam = 0.0 if terms.twist is None else float(terms.twist.lam)
         t = frames.tangents(x, False)
         for key, body in slot.bodies.items():
             b = m.body(body).id
             for i in slot.held[key]:
                 mujoco.mj_applyFT(m, d, -grad[i], np.zeros(3), x[i], b, qfrc)
-            if key in slot.director and lam:
-                # dE/dtheta_end = +lam (end) or -lam (start): the rod resists the turn.
-                torque = -lam * t[-1] if key == "end" else lam * t[0]
-                mujoco.mj_applyFT(m, d, np.zeros(3), torque, x[slot.held[key][0]], b, qfrc)
+            if key in slot.director:
+                # The rod resists the turn of its clamped edge: torque -dE/dtheta about t.
+                edge = 0 if key == "start" else -1
+                if terms.twist is not None:
+                    dedtheta = float(terms.twist.lam) * (1.0 if key == "end" else -1.0)
+                elif terms.grad_theta is not None:
+                    dedtheta = float(terms.grad_theta[edge])
+                else:
+                    continue
+                mujoco.mj_applyFT(m, d, np.zeros(3), -dedtheta * t[edge], x[slot.held[key][0]], b, qfrc)
         d.qfrc_applied[:] += qfrc - slot.reaction
         slot.reaction = qfrc
 
