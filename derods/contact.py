@@ -15,9 +15,10 @@ MuJoCo's primal formulation for pyramidal (and frictionless) contacts, with
 a0 the unconstrained implicit acceleration. Each row of a rod touching a
 static obstacle touches at most two neighbouring vertices, so the Hessian
 A + J^T D J stays banded and Newton's method costs one banded Cholesky per
-iteration. Rows that couple a rod to other moving bodies, to another rod or
-to distant parts of itself (self-contact), or elliptic-cone rows, keep the
-force MuJoCo's own solver computed for them in the same step.
+iteration. Rows that touch distant parts of a rod (self-contact, as in a knot)
+or two rods enter the Newton step as a low-rank update. Rows that couple a rod
+to other moving bodies, and elliptic-cone rows, keep the force MuJoCo's own
+solver computed for them in the same step.
 """
 
 from __future__ import annotations
@@ -38,12 +39,19 @@ _SUPPORTED = (int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL),
 
 @dataclass
 class Rows:
-    """Constraint rows solved by derods, each confined to a window of 9 rod dofs.
+    """Constraint rows solved by derods.
 
-    col0: first local dof of each row's window, shape (k,).
-    jw: the row's Jacobian entries in its window, shape (k, 9).
-    aref: reference acceleration [m/s^2], shape (k,). d: row weight 1/R [1/kg... ], shape (k,).
+    Most rows touch one or two neighbouring vertices and fit a window of 9 dofs
+    ("banded" rows: ``col0``, ``jw``); a self-contact between distant parts of a
+    rod does not ("far" rows: ``jf``), and enters the Newton step as a low-rank
+    update. Per row, banded rows first, then far rows:
+
+    aref: reference acceleration [m/s^2], shape (k,). d: row weight 1/R, shape (k,).
     efc: the rows' indices in MuJoCo's efc arrays, shape (k,).
+    r_over_diag: MuJoCo's R / diagA, shape (k,) (see :meth:`rescale`).
+    col0: first local dof of each banded row's window, shape (k_b,).
+    jw: banded rows' Jacobian entries in their windows, shape (k_b, 9).
+    jf: far rows' Jacobians over all local dofs, shape (k_f, n).
     """
 
     col0: np.ndarray
@@ -51,8 +59,42 @@ class Rows:
     aref: np.ndarray
     d: np.ndarray
     efc: np.ndarray
-
     r_over_diag: np.ndarray | None = None
+    jf: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self.efc)
+
+    @property
+    def n_banded(self) -> int:
+        return len(self.col0)
+
+    def _window(self) -> np.ndarray:
+        return self.col0[:, None] + np.arange(_W)
+
+    def apply(self, a: np.ndarray) -> np.ndarray:
+        """J a for every row, shape (k,)."""
+        pad = np.concatenate([a, np.zeros(_W)])
+        out = np.einsum("kw,kw->k", self.jw, pad[self._window()])
+        if self.jf is not None:
+            out = np.concatenate([out, self.jf @ a])
+        return out
+
+    def transpose_apply(self, lam: np.ndarray, n: int) -> np.ndarray:
+        """J^T lam, shape (n,)."""
+        kb = self.n_banded
+        out = np.bincount(self._window().ravel(), (self.jw * lam[:kb, None]).ravel(), minlength=n + _W)[:n]
+        if self.jf is not None:
+            out = out + self.jf.T @ lam[kb:]
+        return out
+
+    def band(self, weights: np.ndarray, n: int) -> np.ndarray:
+        """Lower band (9, n) of J_b^T diag(weights) J_b over the banded rows."""
+        w = weights[: self.n_banded]
+        vals = w[:, None] * self.jw[:, _P] * self.jw[:, _Q]
+        flat = (_P - _Q)[None, :] * (n + _W) + self.col0[:, None] + _Q[None, :]
+        out = np.bincount(flat.ravel(), vals.ravel(), minlength=_W * (n + _W))
+        return out.reshape(_W, n + _W)[:, :n]
 
     def rescale(self, system: ImplicitSystem) -> None:
         """Recompute the row weights D = 1 / R for the implicit metric.
@@ -62,39 +104,21 @@ class Rows:
         implicit step a vertex is far heavier, so the same R would make every
         contact and friction row much softer than authored (friction creeps).
         Keeping the authored impedance d means R = (1 - d) / d * J A^-1 J^T,
-        whose diagonal needs only the entries of A^-1 inside the band.
+        whose diagonal needs, for banded rows, only the entries of A^-1 inside
+        the band, and for far rows one solve each.
         """
         zb, corrections = system.inverse_diagonal_terms()
-        n = system.n
         zpad = np.concatenate([zb, np.zeros((zb.shape[0], _W))], axis=1)
-        cols = self.col0[:, None] + _Q[None, :]
-        z = zpad[(_P - _Q)[None, :], cols]  # Z[col0 + p, col0 + q] for p >= q, (k, 45)
+        z = zpad[(_P - _Q)[None, :], self.col0[:, None] + _Q[None, :]]  # Z[col0+p, col0+q], p >= q
         weight = np.where(_P == _Q, 1.0, 2.0)
         diag_a = np.einsum("kt,kt,kt,t->k", self.jw[:, _P], self.jw[:, _Q], z, weight)
+        pad = np.concatenate
         for zvec, w in corrections:
-            diag_a -= w * self.apply(zvec) ** 2
+            zp = pad([zvec, np.zeros(_W)])
+            diag_a -= w * np.einsum("kw,kw->k", self.jw, zp[self._window()]) ** 2
+        if self.jf is not None:
+            diag_a = pad([diag_a, np.einsum("kn,nk->k", self.jf, system.solve(self.jf.T))])
         self.d = 1.0 / (self.r_over_diag * diag_a)
-
-    def __len__(self) -> int:
-        return len(self.efc)
-
-    def apply(self, a: np.ndarray) -> np.ndarray:
-        """J a for every row, shape (k,)."""
-        pad = np.concatenate([a, np.zeros(_W)])
-        return np.einsum("kw,kw->k", self.jw, pad[self.col0[:, None] + np.arange(_W)])
-
-    def transpose_apply(self, lam: np.ndarray, n: int) -> np.ndarray:
-        """J^T lam, shape (n,)."""
-        out = np.bincount((self.col0[:, None] + np.arange(_W)).ravel(), (self.jw * lam[:, None]).ravel(),
-                          minlength=n + _W)
-        return out[:n]
-
-    def band(self, weights: np.ndarray, n: int) -> np.ndarray:
-        """Lower band (9, n) of J^T diag(weights) J."""
-        vals = weights[:, None] * self.jw[:, _P] * self.jw[:, _Q]
-        flat = (_P - _Q)[None, :] * (n + _W) + self.col0[:, None] + _Q[None, :]
-        out = np.bincount(flat.ravel(), vals.ravel(), minlength=_W * (n + _W))
-        return out.reshape(_W, n + _W)[:, :n]
 
 
 def rod_rows(model: mujoco.MjModel, data: mujoco.MjData, local_of_dof: np.ndarray,
@@ -134,23 +158,45 @@ def rod_rows(model: mujoco.MjModel, data: mujoco.MjData, local_of_dof: np.ndarra
     np.minimum.at(lo, row[on_rod], local[on_rod])
     np.maximum.at(hi, row[on_rod], local[on_rod])
     supported = np.isin(data.efc_type[:nefc], _SUPPORTED)
-    mine = touches & ~elsewhere & supported & (hi - lo < _W)
+    mine = touches & ~elsewhere & supported
     external = touches & ~mine
     if external.any():
         sel = on_rod & external[row]
         np.add.at(ext, local[sel], val[sel] * data.efc_force[row[sel]])
     if not mine.any():
         return None, ext
-    efc = np.flatnonzero(mine)
+    banded = mine & (hi - lo < _W)
+    far = mine & ~banded
+    efc = np.concatenate([np.flatnonzero(banded), np.flatnonzero(far)])
     k_of_row = np.full(nefc, -1)
     k_of_row[efc] = np.arange(len(efc))
-    sel = on_rod & mine[row]
-    k = k_of_row[row[sel]]
-    jw = np.zeros((len(efc), _W))
-    jw[k, local[sel] - lo[row[sel]]] = val[sel]
-    rows = Rows(lo[efc], jw, data.efc_aref[efc].copy(), data.efc_D[efc].copy(), efc)
-    rows.r_over_diag = data.efc_R[efc] / data.efc_diagA[efc]
+    kb = int(banded.sum())
+    sel = on_rod & banded[row]
+    jw = np.zeros((kb, _W))
+    jw[k_of_row[row[sel]], local[sel] - lo[row[sel]]] = val[sel]
+    jf = None
+    if far.any():
+        sel = on_rod & far[row]
+        jf = np.zeros((len(efc) - kb, n))
+        jf[k_of_row[row[sel]] - kb, local[sel]] = val[sel]
+    rows = Rows(lo[efc[:kb]], jw, data.efc_aref[efc].copy(), data.efc_D[efc].copy(), efc,
+                data.efc_R[efc] / data.efc_diagA[efc], jf)
     return rows, ext
+
+
+def _newton_step(system: ImplicitSystem, rows: Rows, w: np.ndarray, grad: np.ndarray) -> np.ndarray:
+    """H^-1 grad for H = A + J_b^T W_b J_b + J_f^T W_f J_f: a banded solve, with the far
+    rows as a low-rank (Woodbury) update."""
+    extra = rows.band(w, system.n)
+    kb = rows.n_banded
+    if rows.jf is None or not np.any(w[kb:] > 0):
+        return system.solve(grad, extra_band=extra)
+    act = np.flatnonzero(w[kb:] > 0)
+    jf, wf = rows.jf[act], w[kb:][act]
+    sol = system.solve(np.column_stack([grad, jf.T]), extra_band=extra)
+    y, z = sol[:, 0], sol[:, 1:]
+    small = np.diag(1.0 / wf) + jf @ z
+    return y - z @ np.linalg.solve(small, jf @ y)
 
 
 def solve(system: ImplicitSystem, a0: np.ndarray, rows: Rows, max_iter: int = 30,
@@ -174,7 +220,7 @@ def solve(system: ImplicitSystem, a0: np.ndarray, rows: Rows, max_iter: int = 30
         scale = np.max(np.abs(system.mass * a0)) + np.max(np.abs(rows.d * rows.aref)) + 1e-300
         if np.max(np.abs(grad)) <= tol * scale:
             break
-        delta = -system.solve(grad, extra_band=rows.band(w, n))
+        delta = -_newton_step(system, rows, w, grad)
         # Exact line search on f(a + t delta): f'(t) is piecewise linear and increasing.
         jd = rows.apply(delta)
         ad = system.a_matvec(delta)

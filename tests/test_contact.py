@@ -12,7 +12,7 @@ from derods.implicit import ImplicitSystem
 from derods.world import World
 
 
-def small_problem(rng, n_vertices=6, n_rows=7):
+def small_problem(rng, n_vertices=6, n_rows=7, n_far=0):
     n = 3 * n_vertices
     k = np.zeros((9, n))
     a = rng.normal(size=(n, n)) * 0.3
@@ -25,16 +25,23 @@ def small_problem(rng, n_vertices=6, n_rows=7):
     col0 = rng.integers(0, n - 6, size=n_rows)
     jw = np.zeros((n_rows, 9))
     jw[:, :6] = rng.normal(size=(n_rows, 6))
-    rows = contact.Rows(col0, jw, rng.normal(size=n_rows) * 5, rng.uniform(1, 50, size=n_rows),
-                        np.arange(n_rows))
+    jf = None
+    if n_far:
+        jf = np.zeros((n_far, n))
+        for r in range(n_far):  # a contact between the first and the last vertex
+            jf[r, :3], jf[r, -3:] = rng.normal(size=3), rng.normal(size=3)
+    k = n_rows + n_far
+    rows = contact.Rows(col0, jw, rng.normal(size=k) * 5, rng.uniform(1, 50, size=k), np.arange(k), jf=jf)
     return system, rows, rng.normal(size=n)
 
 
-def test_newton_finds_the_minimum_of_mujocos_primal_problem():
+@pytest.mark.parametrize("n_far", [0, 3])
+def test_newton_finds_the_minimum_of_mujocos_primal_problem(n_far):
     """min 1/2 (a - a0)^T A (a - a0) + sum 1/2 D_i min(J_i a - aref_i, 0)^2, compared with a
-    general-purpose minimizer, and its optimality condition holds to round-off."""
+    general-purpose minimizer, and its optimality condition holds to round-off; with
+    rows between distant vertices (self-contact) handled as a low-rank update."""
     rng = np.random.default_rng(0)
-    system, rows, a0 = small_problem(rng)
+    system, rows, a0 = small_problem(rng, n_far=n_far)
     a, lam, iters = contact.solve(system, a0, rows)
     assert np.all(lam >= 0) and np.any(lam > 0) and np.any(lam == 0)
 
@@ -51,18 +58,20 @@ def test_newton_finds_the_minimum_of_mujocos_primal_problem():
 
 def test_rows_band_and_products_match_dense_jacobian():
     rng = np.random.default_rng(1)
-    system, rows, _ = small_problem(rng)
+    system, rows, _ = small_problem(rng, n_far=2)
     n = system.n
     dense = np.zeros((len(rows), n))
-    for i in range(len(rows)):
+    for i in range(rows.n_banded):
         w = min(9, n - rows.col0[i])
         dense[i, rows.col0[i]: rows.col0[i] + w] = rows.jw[i, :w]
+    dense[rows.n_banded:] = rows.jf
     x = rng.normal(size=n)
     np.testing.assert_allclose(rows.apply(x), dense @ x, rtol=1e-12)
     lam = rng.uniform(size=len(rows))
     np.testing.assert_allclose(rows.transpose_apply(lam, n), dense.T @ lam, rtol=1e-12, atol=1e-14)
     band = rows.band(rows.d, n)
-    jtdj = dense.T @ (rows.d[:, None] * dense)
+    kb = rows.n_banded
+    jtdj = dense[:kb].T @ (rows.d[:kb, None] * dense[:kb])
     for d in range(9):
         np.testing.assert_allclose(band[d, : n - d], np.diag(jtdj, -d), rtol=1e-12, atol=1e-12)
 
