@@ -139,7 +139,8 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--length", type=float, default=None, help="rod length [m] (default 1)")
     b.add_argument("--radius", type=float, default=None, help="rod radius [m] (default 0.01)")
     b.add_argument("--density", type=float, default=None, help="density [kg/m^3] (default 1000)")
-    b.add_argument("--mode", choices=["implicit", "explicit"], default=None, help="default implicit")
+    b.add_argument("--mode", choices=["implicit", "explicit", "projection"], default=None,
+                   help="default implicit")
     b.add_argument("--json", action="store_true", help="print one JSON object per line")
     b.set_defaults(func=bench)
     args = parser.parse_args(argv)

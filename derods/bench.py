@@ -68,7 +68,7 @@ class CaseParams:
 
     n_edges: edges of the rod. dt: time step [s]. young: E [Pa]. shear: G [Pa]
     (None: from poisson). length [m], radius [m], density [kg/m^3], gravity
-    [m/s^2] (magnitude, pointing down). mode: "implicit" or "explicit".
+    [m/s^2] (magnitude, pointing down). mode: "implicit", "explicit" or "projection".
     backend: "der" (MuJoCo's native rods arrive with the comparison tools).
     """
 
@@ -90,8 +90,8 @@ class CaseParams:
                 f"backend {self.backend!r} is not available yet; available: {BACKENDS} "
                 "(MuJoCo's native flex and cable rods arrive with the comparison tools)"
             )
-        if self.mode not in ("implicit", "explicit"):
-            raise ValueError(f"mode must be 'implicit' or 'explicit', got {self.mode!r}")
+        if self.mode not in ("implicit", "explicit", "projection"):
+            raise ValueError(f"mode must be 'implicit', 'explicit' or 'projection', got {self.mode!r}")
         if int(self.n_edges) != self.n_edges or self.n_edges < 2:
             raise ValueError(f"n_edges must be an integer >= 2, got {self.n_edges!r}")
         for name, unit in (("dt", "s"), ("length", "m")):

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import mujoco
 import numpy as np
@@ -48,7 +48,7 @@ from .rod import Rod, RodState
 from .twist import TwistBoundary
 
 END_KINDS = ("free", "pin", "clamp")
-MODES = ("auto", "implicit", "explicit")
+MODES = ("auto", "implicit", "explicit", "projection")
 
 #: Divergence thresholds: an edge stretched beyond this strain, or a vertex faster
 #: than this [m/s], means the step has lost the solution.
@@ -136,8 +136,12 @@ class World:
     scene: None for an empty world, a path to an MJCF file, or a ``mujoco.MjSpec``.
     dt: time step [s]; None keeps the scene's (MuJoCo's default 2e-3).
     gravity: [m/s^2], shape (3,); None keeps the scene's.
-    mode: "implicit", "explicit" or "auto" (implicit when dt exceeds half the
-        estimated explicit stability limit of the stiffest rod).
+    mode: "implicit", "explicit", "auto" (implicit when dt exceeds half the
+        estimated explicit stability limit of the stiffest rod), or "projection":
+        the DER paper's method, an implicit step for bending and twisting with
+        inextensibility enforced by fast projection (:mod:`derods.projection`)
+        instead of a stiff stretching term; MuJoCo then resolves contacts with
+        the bare vertex masses, as in the explicit mode.
     mass_damping: a [1/s]; stiffness_damping: b [s] (see the module docstring).
     contact: :class:`ContactParams` for all rods.
     integrator: MuJoCo integrator name for a new world ("implicitfast" by default);
@@ -232,6 +236,11 @@ class World:
             bodies[key] = body
         if not rod.closed:
             rod = rod.with_boundary(_twist_boundary(rod, start, end, name))
+        if self.requested_mode == "projection":
+            if rod.closed:
+                raise ValueError("mode='projection' handles open rods only; use mode='implicit' for rings")
+            # Edge lengths are held by projection; a vanishing spring keeps the term's bookkeeping.
+            rod = replace(rod, stretch_stiffness=1e-9 * rod.material.stretch_stiffness)
         slot = _Slot(name, rod, x0, start, end, tuple(rgba), fixed)
         slot.bodies = bodies
         n_held = {"free": 0, "pin": 1, "clamp": 2}
@@ -502,6 +511,8 @@ class World:
                 force -= self.stiffness_damping * system.k_matvec(v)
             d.qfrc_applied[dofs] = force
             mujoco.mj_step(m, d)
+        elif self.mode == "projection":
+            self._projection_step(system, grad, v)
         else:
             self._implicit_step(system, grad, v)
         self.n_steps += 1
@@ -562,6 +573,30 @@ class World:
             pick = lambda a: a.reshape(-1)[lo:hi]  # noqa: E731
         rank1 = None if tw is None or tw.c == 0 else (pick(tw.g), float(tw.c))
         return band, rank1, pick(terms.grad_x)
+
+    def _projection_step(self, system: ImplicitSystem, grad: np.ndarray, v: np.ndarray) -> None:
+        """Implicit bending/twist step, then fast projection onto the rest edge lengths."""
+        from .projection import project
+
+        m, d = self._model, self._data
+        h = m.opt.timestep
+        dofs, mass = self._dofs, self._mass
+        user = d.xfrc_applied[self._free_bodies, :3].ravel()
+        other = (mass.reshape(-1, 3) * m.opt.gravity).ravel() + user
+        a0 = system.solve(system.rhs(other - grad, v))
+        accel = np.empty_like(a0)
+        for i, slot in enumerate(self._slots):
+            lo, hi = self._offsets[i], self._offsets[i + 1]
+            x = self._positions(slot)
+            inv_mass = np.zeros(slot.rod.n_vertices)
+            inv_mass[slot.free] = 1.0 / slot.mass[0::3]
+            pred = x.copy()
+            v_rod = v[lo:hi].reshape(-1, 3)
+            pred[slot.free] += h * (v_rod + h * a0[lo:hi].reshape(-1, 3))
+            xp, _ = project(pred, inv_mass, slot.rod.rest_len)
+            accel[lo:hi] = (((xp[slot.free] - x[slot.free]) / h - v_rod) / h).ravel()
+        d.qfrc_applied[dofs] = mass * accel - other
+        mujoco.mj_step(m, d)
 
     def _implicit_step(self, system: ImplicitSystem, grad: np.ndarray, v: np.ndarray) -> None:
         """One implicit step: unconstrained solve, MuJoCo's forward pass (contacts and
