@@ -104,6 +104,10 @@ def atomic_output(out: pathlib.Path):
     os.close(fd)
     try:
         yield pathlib.Path(tmp)
+        # mkstemp makes the file private (0600); give it the permissions of a new file.
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, out)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
