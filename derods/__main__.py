@@ -2,6 +2,8 @@
 
 Commands:
   drop    drop rods onto a rigid scene and write an MP4 (headless).
+  frames  draw a Bezier rod with its Bishop frames to a PNG (C0 or C1 joins).
+  michell draw twisted rings below and above Michell's critical twist to a PNG.
   demo    build rods from the paper's test cases and print their frames and energies.
   bench   run a benchmark case (cantilever, frequency, drop, michell, circle, twist) and print records.
 """
@@ -89,6 +91,29 @@ def drop(args: argparse.Namespace) -> int:
     return 0
 
 
+def frames_cmd(args: argparse.Namespace) -> int:
+    """``derods frames``: see :func:`derods.figures.bezier_frames`."""
+    from derods import figures
+
+    points = figures.BEZIER_DEMO if args.control is None else figures.parse_points(args.control)
+    info = figures.bezier_frames(args.out, points, args.continuity, args.n_edges, args.width, args.height)
+    print(f"wrote {info['out']}: {args.continuity} joins, {args.n_edges} edges, "
+          f"largest turning angle {info['max_turn_deg']:.1f} deg")
+    return 0
+
+
+def michell_cmd(args: argparse.Namespace) -> int:
+    """``derods michell``: see :func:`derods.figures.michell_pair`."""
+    from derods import figures
+
+    info = figures.michell_pair(args.out, args.n_edges, args.below, args.above, args.seconds,
+                                args.width, args.height)
+    bend = ", ".join(f"{b * 1000:.2f} mm" for b in info["out_of_plane"])
+    print(f"wrote {info['out']}: Theta_c = {info['theta_c']:.3f} rad; out of plane after "
+          f"{args.seconds:g} s: {bend}")
+    return 0
+
+
 def bench(args: argparse.Namespace) -> int:
     """``derods bench CASE``: see :mod:`derods.bench`."""
     from derods import bench as bench_mod
@@ -119,6 +144,26 @@ def main(argv: list[str] | None = None) -> int:
     d.add_argument("--seed", type=int, default=0, help="seed of the rods' placement (default 0)")
     d.add_argument("--quiet", action="store_true", help="no progress bar")
     d.set_defaults(func=drop)
+
+    f = sub.add_parser("frames", help="draw a Bezier rod with its Bishop frames to a PNG")
+    f.add_argument("--control", default=None,
+                   help="control points 'x,y,z; x,y,z; ...' [m], 3k+1 of them (default: a two-segment demo)")
+    f.add_argument("--continuity", choices=["C0", "C1"], default="C1", help="join continuity (default C1)")
+    f.add_argument("--n-edges", type=_positive_int, default=40, help="edges (default 40)")
+    f.add_argument("--width", type=int, default=960, help="image width [pixels] (default 960)")
+    f.add_argument("--height", type=int, default=640, help="image height [pixels] (default 640)")
+    f.add_argument("--out", default="frames.png", help="output PNG (default frames.png)")
+    f.set_defaults(func=frames_cmd)
+
+    mi = sub.add_parser("michell", help="twisted rings below and above the critical twist, as a PNG")
+    mi.add_argument("--n-edges", type=_positive_int, default=50, help="edges per ring (default 50)")
+    mi.add_argument("--below", type=float, default=0.9, help="left ring's twist / Theta_c (default 0.9)")
+    mi.add_argument("--above", type=float, default=1.2, help="right ring's twist / Theta_c (default 1.2)")
+    mi.add_argument("--seconds", type=float, default=4.0, help="simulated time [s] (default 4)")
+    mi.add_argument("--width", type=int, default=960, help="image width [pixels] (default 960)")
+    mi.add_argument("--height", type=int, default=480, help="image height [pixels] (default 480)")
+    mi.add_argument("--out", default="michell.png", help="output PNG (default michell.png)")
+    mi.set_defaults(func=michell_cmd)
 
     p = sub.add_parser("demo", help="build rods from the paper's test cases and print frames and energies")
     p.add_argument("--n-edges", type=_positive_int, default=40, help="edges per rod (default 40)")

@@ -49,7 +49,8 @@ class Camera:
     """An off-screen renderer of a MuJoCo model.
 
     model: the ``mujoco.MjModel``. width, height: image size [pixels].
-    camera: a camera name or id of the model, or None for MuJoCo's free camera.
+    camera: a camera name or id of the model, a ``mujoco.MjvCamera``, or None for
+        MuJoCo's default free camera.
     """
 
     def __init__(self, model, width: int, height: int, camera=None):

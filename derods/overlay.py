@@ -1,0 +1,85 @@
+"""Drawing on top of a rendered scene: frame arrows and strain colouring.
+
+Functions here add geoms to a ``mujoco.MjvScene`` (pass them to
+:meth:`derods.render.Camera.render` as the scene callback). Colours follow the
+DER paper's figures: the first director (normal) pink, the second (binormal)
+green.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+PINK = (0.95, 0.35, 0.65, 1.0)
+GREEN = (0.2, 0.75, 0.3, 1.0)
+
+
+def _add(scene, geom_type, size, rgba) -> object:
+    if scene.ngeom >= scene.maxgeom:
+        raise ValueError(
+            f"the scene holds at most {scene.maxgeom} geoms; draw fewer overlays (e.g. every k-th frame)"
+        )
+    g = scene.geoms[scene.ngeom]
+    mujoco.mjv_initGeom(g, geom_type, np.asarray(size, float), np.zeros(3), np.eye(3).ravel(),
+                        np.asarray(rgba, np.float32))
+    scene.ngeom += 1
+    return g
+
+
+def add_segment(scene, a, b, width: float, rgba, geom_type=mujoco.mjtGeom.mjGEOM_CAPSULE) -> None:
+    """A capsule (or arrow, cylinder, line) from point a to point b [m], of radius ``width`` [m]."""
+    g = _add(scene, geom_type, [0.0, 0.0, 0.0], rgba)
+    mujoco.mjv_connector(g, geom_type, width, np.asarray(a, float), np.asarray(b, float))
+
+
+def add_sphere(scene, p, radius: float, rgba) -> None:
+    """A sphere of ``radius`` [m] at point p [m]."""
+    g = _add(scene, mujoco.mjtGeom.mjGEOM_SPHERE, [radius, radius, radius], rgba)
+    g.pos[:] = np.asarray(p, float)
+
+
+def add_frames(scene, x: np.ndarray, d1: np.ndarray, d2: np.ndarray, length: float, width: float,
+               every: int = 1, rgba1=PINK, rgba2=GREEN) -> None:
+    """Arrows of two directors at every ``every``-th edge midpoint of an open rod.
+
+    x: vertex positions [m], shape (n_vertices, 3); d1, d2: unit directors per edge,
+    shape (n_edges, 3) (Bishop u, v or material m1, m2). length, width: arrow size [m].
+    """
+    mid = 0.5 * (x[1:] + x[:-1])
+    for j in range(0, len(mid), every):
+        add_segment(scene, mid[j], mid[j] + length * d1[j], width, rgba1, mujoco.mjtGeom.mjGEOM_ARROW)
+        add_segment(scene, mid[j], mid[j] + length * d2[j], width, rgba2, mujoco.mjtGeom.mjGEOM_ARROW)
+
+
+def strain_colours(values: np.ndarray, vmax: float | None = None) -> np.ndarray:
+    """RGBA per value on a blue (0) to yellow to red (vmax) scale, shape (n, 4)."""
+    v = np.abs(np.asarray(values, float))
+    top = vmax if vmax else (v.max() if v.max() > 0 else 1.0)
+    s = np.clip(v / top, 0.0, 1.0)[:, None]
+    low, mid, high = np.array([0.2, 0.4, 0.9]), np.array([0.95, 0.85, 0.2]), np.array([0.9, 0.15, 0.1])
+    rgb = np.where(s < 0.5, low + (mid - low) * (2 * s), mid + (high - mid) * (2 * s - 1))
+    return np.concatenate([rgb, np.ones((len(v), 1))], axis=1)
+
+
+def add_tube(scene, x: np.ndarray, radius: float, rgba_per_edge: np.ndarray, closed: bool = False) -> None:
+    """The rod as capsules, one per edge, coloured per edge (e.g. by :func:`strain_colours`)."""
+    n = len(x) if closed else len(x) - 1
+    for j in range(n):
+        add_segment(scene, x[j], x[(j + 1) % len(x)], radius, rgba_per_edge[j])
+
+
+def bending_strain(x: np.ndarray, closed: bool) -> np.ndarray:
+    """Curvature per edge [1/m], shape (n_edges,): the mean over the edge's joints of
+    |kb| / (mean length of the joint's two edges). Times the radius it is the bending strain."""
+    from .geometry import curvature_binormal, edges, norm
+
+    kb = norm(curvature_binormal(x, closed))
+    h = norm(edges(x, closed))
+    k_joint = kb / (0.5 * (h[:-1] + h[1:])) if not closed else kb / (0.5 * (np.roll(h, 1) + h))
+    if closed:
+        return 0.5 * (k_joint + np.roll(k_joint, -1))
+    out = np.zeros(len(h))
+    out[:-1] += 0.5 * k_joint
+    out[1:] += 0.5 * k_joint
+    return out
