@@ -84,7 +84,7 @@ def drop(args: argparse.Namespace) -> int:
     params = drop_mod.DropParams(
         scene=args.scene, rods=args.rods, shape=args.shape, n_edges=args.n_edges, length=args.length,
         seconds=args.seconds, dt=args.dt, fps=args.fps, width=args.width, height=args.height,
-        camera=args.camera, material=mat, seed=args.seed)
+        camera=args.camera, material=mat, seed=args.seed, overlay=args.overlay)
     summary = drop_mod.drop(params, args.out, progress=not args.quiet)
     print(f"wrote {summary['out']}: {summary['frames']} frames, {summary['sim_s']:.2f} s simulated "
           f"({summary['steps']} steps, {summary['mode']}), rods {', '.join(summary['rods'])}")
@@ -142,6 +142,8 @@ def main(argv: list[str] | None = None) -> int:
     d.add_argument("--radius", type=float, default=0.008, help="rod radius [m] (default 0.008)")
     d.add_argument("--density", type=float, default=1100.0, help="density [kg/m^3] (default 1100)")
     d.add_argument("--seed", type=int, default=0, help="seed of the rods' placement (default 0)")
+    d.add_argument("--overlay", choices=["none", "frames", "bend"], default="none",
+                   help="draw material frames or colour rods by curvature (default none)")
     d.add_argument("--quiet", action="store_true", help="no progress bar")
     d.set_defaults(func=drop)
 

@@ -22,6 +22,7 @@ from .world import ContactParams, World
 
 MJCF_DIR = pathlib.Path(__file__).resolve().parents[1] / "mjcf"
 SHAPES = ("straight", "helix", "bezier")
+OVERLAYS = ("none", "frames", "bend")
 #: Rod colours (RGBA), cycled: warm and saturated, to stand out from the grey-blue scenes.
 COLOURS = [(0.9, 0.3, 0.15, 1), (0.95, 0.7, 0.1, 1), (0.2, 0.65, 0.3, 1), (0.75, 0.2, 0.55, 1),
            (0.15, 0.55, 0.85, 1), (0.55, 0.35, 0.2, 1)]
@@ -55,6 +56,8 @@ class DropParams:
     second. width, height: video size [pixels]. camera: camera name (None: the
     scene's "main", else MuJoCo's free camera). material: the rods' material.
     mass_damping: drag rate [1/s]. seed: random seed of the placement.
+    overlay: "none", "frames" (material frames as arrows: m1 pink, m2 green) or
+    "bend" (rods coloured by bending strain r kappa, blue straight to red at 5 %).
     """
 
     scene: str = "box"
@@ -71,8 +74,11 @@ class DropParams:
     material: Material = Material(young=2e6, radius=0.008, density=1100.0)
     mass_damping: float = 0.5
     seed: int = 0
+    overlay: str = "none"
 
     def __post_init__(self):
+        if self.overlay not in OVERLAYS:
+            raise ValueError(f"overlay must be one of {OVERLAYS}, got {self.overlay!r}")
         if self.shape not in SHAPES:
             raise ValueError(f"shape must be one of {SHAPES}, got {self.shape!r}")
         if int(self.rods) != self.rods or self.rods < 1:
@@ -128,6 +134,33 @@ def build_world(p: DropParams) -> World:
     return world
 
 
+def overlay_painter(world: World, kind: str):
+    """A scene callback that draws ``kind`` ("frames" or "bend") for every rod, or None."""
+    from . import frames, overlay
+
+    if kind == "none":
+        return None
+    if kind == "bend":
+        world.model.flex_rgba[:, 3] = 0.0  # the coloured tube replaces the flex
+
+    def paint(scene):
+        for i, rod in enumerate(world.rods):
+            x = world.positions(i)
+            if kind == "frames":
+                st = world.rod_state(i)
+                m1, m2 = frames.material_frames(st.u, frames.tangents(x, rod.closed), st.theta)
+                h = float(np.mean(rod.rest_len))
+                xx = np.concatenate([x, x[:1]]) if rod.closed else x
+                overlay.add_frames(scene, xx, m1, m2, length=3.0 * h, width=0.5 * rod.material.radius,
+                                   every=max(1, len(m1) // 20))
+            else:
+                curvature = overlay.bending_strain(x, rod.closed)
+                colours = overlay.strain_colours(curvature, vmax=0.05 / rod.material.radius)
+                overlay.add_tube(scene, x, rod.material.radius, colours, closed=rod.closed)
+
+    return paint
+
+
 def drop(p: DropParams, out, progress: bool = True) -> dict:
     """Simulate ``p`` and write an MP4 to ``out``; returns a summary dict.
 
@@ -142,15 +175,16 @@ def drop(p: DropParams, out, progress: bool = True) -> dict:
     if cam_name is None:
         cam_name = "main" if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, "main") >= 0 else None
     camera = render.Camera(model, p.width, p.height, cam_name)
+    paint = overlay_painter(world, p.overlay)
     n_frames = max(1, int(round(p.seconds * p.fps)))
     steps_per_frame = max(1, int(round(1.0 / (p.fps * p.dt))))
     try:
         with render.VideoWriter(out, (p.height, p.width), p.fps) as video:
-            video.add(camera.render(world.data))
+            video.add(camera.render(world.data, paint))
             for _ in tqdm(range(n_frames - 1), desc=f"drop {p.scene}", unit="frame", disable=not progress,
                           leave=False):
                 world.step(steps_per_frame)
-                video.add(camera.render(world.data))
+                video.add(camera.render(world.data, paint))
     finally:
         camera.close()
     return {"out": str(out), "frames": video.frames, "sim_s": world.time, "steps": world.n_steps,

@@ -83,3 +83,24 @@ def test_unreadable_mjcf_is_reported(tmp_path, capsys):
     bad.write_text("<mujoco><worldbody><geom type='nonsense'/></worldbody></mujoco>")
     assert main(["drop", "--scene", str(bad), "--out", str(tmp_path / "x.mp4")] + SMALL) == 2
     assert "cannot read MJCF scene" in capsys.readouterr().err
+
+
+def test_overlays_draw_frames_and_bending_colours():
+    """--overlay frames adds pink and green director arrows; --overlay bend colours the rods
+    from blue (straight) towards red where they bend over the box's edges."""
+    world = drop.build_world(drop.DropParams(scene="box", rods=2, n_edges=24, dt=5e-3))
+    world.step(300)
+    cam = render.Camera(world.model, 480, 270, "main")
+    try:
+        plain = cam.render(world.data)
+        framed = cam.render(world.data, drop.overlay_painter(world, "frames"))
+        bent = cam.render(world.data, drop.overlay_painter(world, "bend"))
+    finally:
+        cam.close()
+
+    def near(img, rgb, tol=60):
+        return int(np.sum(np.all(np.abs(img.astype(int) - np.array(rgb)) < tol, axis=-1)))
+
+    assert near(framed, (240, 90, 165)) > near(plain, (240, 90, 165)) + 10  # pink arrows
+    assert near(bent, (60, 100, 220)) > 50  # straight parts blue
+    assert near(bent, (235, 120, 40), tol=50) + near(bent, (230, 60, 30), tol=50) > 5  # bends warm
