@@ -166,26 +166,12 @@ def drop(p: DropParams, out, progress: bool = True) -> dict:
 
     The video appears at ``out`` only once complete (see :mod:`derods.render`).
     """
-    from tqdm import tqdm
-
     out = render.check_output_path(out)
     world = build_world(p)
-    model = world.model
     cam_name = p.camera
-    if cam_name is None:
-        cam_name = "main" if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, "main") >= 0 else None
-    camera = render.Camera(model, p.width, p.height, cam_name)
-    paint = overlay_painter(world, p.overlay)
-    n_frames = max(1, int(round(p.seconds * p.fps)))
-    steps_per_frame = max(1, int(round(1.0 / (p.fps * p.dt))))
-    try:
-        with render.VideoWriter(out, (p.height, p.width), p.fps) as video:
-            video.add(camera.render(world.data, paint))
-            for _ in tqdm(range(n_frames - 1), desc=f"drop {p.scene}", unit="frame", disable=not progress,
-                          leave=False):
-                world.step(steps_per_frame)
-                video.add(camera.render(world.data, paint))
-    finally:
-        camera.close()
-    return {"out": str(out), "frames": video.frames, "sim_s": world.time, "steps": world.n_steps,
+    if cam_name is None and mujoco.mj_name2id(world.model, mujoco.mjtObj.mjOBJ_CAMERA, "main") >= 0:
+        cam_name = "main"
+    frames = render.film(world, out, p.seconds, p.fps, p.width, p.height, cam_name,
+                         paint=overlay_painter(world, p.overlay), progress=progress, label=f"drop {p.scene}")
+    return {"out": str(out), "frames": frames, "sim_s": world.time, "steps": world.n_steps,
             "rods": world.rod_names, "mode": world.mode}

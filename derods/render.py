@@ -153,3 +153,34 @@ def write_image(out, image: np.ndarray) -> pathlib.Path:
     with atomic_output(out) as tmp:
         mediapy.write_image(tmp, image)
     return out
+
+
+def film(world, out, seconds: float, fps: float, width: int, height: int, camera=None, paint=None,
+         before_step=None, progress: bool = True, label: str = "film") -> int:
+    """Step a :class:`derods.world.World` for ``seconds`` and write what ``camera`` sees to an MP4.
+
+    paint: optional scene callback (overlays). before_step: optional ``f(world)``
+    called before every step (to move clamps, set controls). Shows a
+    progress bar. Returns the number of frames; the video appears only when complete.
+    """
+    from tqdm import tqdm
+
+    out = check_output_path(out)
+    dt = world.model.opt.timestep
+    n_frames = max(1, int(round(seconds * fps)))
+    steps_per_frame = max(1, int(round(1.0 / (fps * dt))))
+    cam = Camera(world.model, width, height, camera)
+    try:
+        with VideoWriter(out, (height, width), fps) as video:
+            video.add(cam.render(world.data, paint))
+            for _ in tqdm(range(n_frames - 1), desc=label, unit="frame", disable=not progress, leave=False):
+                if before_step is None:
+                    world.step(steps_per_frame)
+                else:
+                    for _ in range(steps_per_frame):
+                        before_step(world)
+                        world.step()
+                video.add(cam.render(world.data, paint))
+    finally:
+        cam.close()
+    return video.frames
