@@ -4,6 +4,7 @@ Commands:
   drop    drop rods onto a rigid scene and write an MP4 (headless).
   frames  draw a Bezier rod with its Bishop frames to a PNG (C0 or C1 joins).
   michell draw twisted rings below and above Michell's critical twist to a PNG.
+  view    open a scene with rods in MuJoCo's interactive viewer (needs a display).
   demo    build rods from the paper's test cases and print their frames and energies.
   bench   run a benchmark case (cantilever, frequency, drop, michell, circle, twist) and print records.
 """
@@ -91,6 +92,31 @@ def drop(args: argparse.Namespace) -> int:
     return 0
 
 
+def view(args: argparse.Namespace) -> int:
+    """``derods view``: the drop scene in MuJoCo's viewer; drag a rod with the mouse
+    (double-click it, then Ctrl + right-drag) and the pull enters the implicit step."""
+    import os
+    import time
+
+    if sys.platform.startswith("linux") and not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
+        raise ValueError("derods view needs a display and none is set (DISPLAY); run it on a desktop, "
+                         "or write a video with 'derods drop'")
+    import mujoco.viewer
+
+    from derods import drop as drop_mod
+
+    params = drop_mod.DropParams(scene=args.scene, rods=args.rods, shape=args.shape, n_edges=args.n_edges)
+    world = drop_mod.build_world(params)
+    h = world.model.opt.timestep
+    with mujoco.viewer.launch_passive(world.model, world.data) as viewer:
+        while viewer.is_running():
+            start = time.perf_counter()
+            world.step(max(1, int(round(1 / (60 * h)))))
+            viewer.sync()
+            time.sleep(max(0.0, 1 / 60 - (time.perf_counter() - start)))
+    return 0
+
+
 def frames_cmd(args: argparse.Namespace) -> int:
     """``derods frames``: see :func:`derods.figures.bezier_frames`."""
     from derods import figures
@@ -156,6 +182,13 @@ def main(argv: list[str] | None = None) -> int:
     f.add_argument("--height", type=int, default=640, help="image height [pixels] (default 640)")
     f.add_argument("--out", default="frames.png", help="output PNG (default frames.png)")
     f.set_defaults(func=frames_cmd)
+
+    v = sub.add_parser("view", help="open a scene with rods in MuJoCo's interactive viewer")
+    v.add_argument("--scene", default="box", help="scene name or MJCF path (default box)")
+    v.add_argument("--rods", type=int, default=3, help="number of rods (default 3)")
+    v.add_argument("--shape", choices=["straight", "helix", "bezier"], default="straight")
+    v.add_argument("--n-edges", type=_positive_int, default=40, help="edges per rod (default 40)")
+    v.set_defaults(func=view)
 
     mi = sub.add_parser("michell", help="twisted rings below and above the critical twist, as a PNG")
     mi.add_argument("--n-edges", type=_positive_int, default=50, help="edges per ring (default 50)")

@@ -16,3 +16,11 @@ def test_bad_input_is_one_line_error_and_nonzero_exit(capsys):
     assert main(["demo", "--young", "-3"]) == 2
     err = capsys.readouterr().err.strip()
     assert err == "derods demo: error: young must be finite and > 0 [Pa], got -3.0"
+
+
+def test_view_without_a_display_says_so(monkeypatch, capsys):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    assert main(["view"]) == 2
+    err = capsys.readouterr().err
+    assert "needs a display" in err and "derods drop" in err
