@@ -32,15 +32,7 @@ def parse_points(text: str) -> np.ndarray:
 def _stage(width: int, height: int) -> mujoco.MjModel:
     """An empty, lit model to draw overlays in."""
     spec = mujoco.MjSpec()
-    spec.visual.global_.offwidth = max(width, 640)
-    spec.visual.global_.offheight = max(height, 480)
-    spec.visual.headlight.ambient = [0.45, 0.45, 0.45]
-    spec.visual.headlight.diffuse = [0.55, 0.55, 0.55]
-    spec.stat.extent = 1.0
-    tex = spec.add_texture(name="sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
-                           builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT, rgb1=[0.97, 0.98, 1.0],
-                           rgb2=[0.85, 0.89, 0.95], width=64, height=64)
-    del tex
+    render.add_backdrop(spec, max(width, 640), max(height, 480))
     spec.worldbody.add_light(pos=[0, 0, 5], dir=[0, 0, -1], type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
                              diffuse=[0.4, 0.4, 0.4])
     return spec.compile()

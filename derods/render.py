@@ -20,6 +20,20 @@ import tempfile
 import numpy as np
 
 
+def add_backdrop(spec, width: int = 1280, height: int = 720) -> None:
+    """Give an MjSpec a pale sky, soft headlight and an offscreen buffer of at least
+    width x height [pixels], for pictures of scenes that set none."""
+    import mujoco
+
+    spec.visual.global_.offwidth = max(spec.visual.global_.offwidth, width)
+    spec.visual.global_.offheight = max(spec.visual.global_.offheight, height)
+    spec.visual.headlight.ambient = [0.45, 0.45, 0.45]
+    spec.visual.headlight.diffuse = [0.55, 0.55, 0.55]
+    spec.add_texture(name="derods_sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
+                     builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT, rgb1=[0.97, 0.98, 1.0],
+                     rgb2=[0.82, 0.87, 0.94], width=64, height=64)
+
+
 def ensure_headless_gl() -> None:
     """Use EGL unless a display exists or the user chose a backend (MUJOCO_GL)."""
     if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY") and sys.platform.startswith("linux"):

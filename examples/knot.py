@@ -45,7 +45,7 @@ def main(argv=None):
     out.mkdir(parents=True, exist_ok=True)
     x = overhand_knot()
     spec = mujoco.MjSpec()
-    spec.visual.global_.offwidth, spec.visual.global_.offheight = 1280, 720
+    render.add_backdrop(spec)
     spec.worldbody.add_light(pos=[0, 0, 1.5], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
     for name, p in (("left", x[0]), ("right", x[-1])):
         b = spec.worldbody.add_body(name=name, pos=p, mocap=True)
@@ -57,23 +57,30 @@ def main(argv=None):
     world.add_rod(rope, "rope", start="pin", end="pin", start_body="left", end_body="right",
                   rgba=(0.2, 0.5, 0.85, 1))
     world.compile()
-    away = [(x[0] - (0, 0, 0.5)) / np.linalg.norm(x[0] - (0, 0, 0.5)),
-            (x[-1] - (0, 0, 0.5)) / np.linalg.norm(x[-1] - (0, 0, 0.5))]
+    # Pull the ends apart along the line through them, so the knot stays in view.
+    chord = (x[-1] - x[0]) / np.linalg.norm(x[-1] - x[0])
+    away = [-chord, chord]
 
     def pull(w):
-        d = 0.15 * max(0.0, w.time - 0.1)  # 0.15 m/s each way
+        d = 0.15 * min(max(0.0, w.time - 0.1), 1.2)  # 0.15 m/s each way for 1.2 s, then hold
         w.data.mocap_pos[0] = x[0] + away[0] * d
         w.data.mocap_pos[1] = x[-1] + away[1] * d
 
     cam = mujoco.MjvCamera()
-    cam.lookat[:] = [0.0, 0.0, 0.5]
-    cam.distance, cam.azimuth, cam.elevation = 0.45, 90.0, -60.0
-    seconds = 0.3 if args.test else 2.5
+    cam.lookat[:] = x[len(x) // 2]
+    cam.distance, cam.azimuth, cam.elevation = 0.5, 90.0, -70.0
+    seconds = 0.3 if args.test else 2.0
     size = (320, 180) if args.test else (1280, 720)
     render.film(world, out / "knot.mp4", seconds, 30.0, size[0], size[1], cam, before_step=pull,
                 progress=not args.test, label="knot")
+    p = world.positions("rope")
+    e0, e1 = p[:-1], p[1:]
+    i, j = np.triu_indices(len(e0), k=3)
+    mids = 0.5 * (e0 + e1)
+    closest = np.min(np.linalg.norm(mids[i] - mids[j], axis=1))
     print(f"{out / 'knot.mp4'}: ends {np.linalg.norm(x[-1] - x[0]):.3f} m -> "
-          f"{np.linalg.norm(world.positions('rope')[-1] - world.positions('rope')[0]):.3f} m apart")
+          f"{np.linalg.norm(p[-1] - p[0]):.3f} m apart; closest non-neighbour edge midpoints "
+          f"{1000 * closest:.1f} mm (diameter {2000 * rope.material.radius:.0f} mm)")
 
 
 if __name__ == "__main__":

@@ -48,7 +48,7 @@ def main(argv=None):
     gap = 0.6  # m between the clamps, for a 1 m rod
     spec = mujoco.MjSpec()
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    spec.visual.global_.offwidth, spec.visual.global_.offheight = 1280, 720
+    render.add_backdrop(spec)
     spec.worldbody.add_light(pos=[0.3, -0.5, 1.5], dir=[0, 0.3, -1], diffuse=[0.8, 0.8, 0.8])
     motor = spec.worldbody.add_body(name="motor", pos=[gap, 0, 0.5])
     motor.add_joint(name="spin", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[1, 0, 0])
