@@ -80,13 +80,15 @@ def drop(args: argparse.Namespace) -> int:
     render.ensure_headless_gl()
     import derods
     from derods import drop as drop_mod
+    from derods import figures
 
     mat = derods.Material(young=args.young, radius=args.radius, density=args.density)
+    control = None if args.control is None else figures.parse_points(args.control)
     params = drop_mod.DropParams(
         scene=args.scene, rods=args.rods, shape=args.shape, n_edges=args.n_edges, length=args.length,
         seconds=args.seconds, dt=args.dt, fps=args.fps, width=args.width, height=args.height,
-        camera=args.camera, material=mat, seed=args.seed, overlay=args.overlay)
-    summary = drop_mod.drop(params, args.out, progress=not args.quiet)
+        camera=args.camera, material=mat, seed=args.seed, overlay=args.overlay, control=control)
+    summary = drop_mod.drop(params, args.out, progress=not args.quiet, still=args.still)
     print(f"wrote {summary['out']}: {summary['frames']} frames, {summary['sim_s']:.2f} s simulated "
           f"({summary['steps']} steps, {summary['mode']}), rods {', '.join(summary['rods'])}")
     return 0
@@ -154,7 +156,10 @@ def main(argv: list[str] | None = None) -> int:
     d.add_argument("--scene", default="box",
                    help="floor, box, table_edge, stairs, pegs, halfpipe, rail, or an MJCF path (default box)")
     d.add_argument("--rods", type=int, default=3, help="number of rods (default 3)")
-    d.add_argument("--shape", choices=["straight", "helix", "bezier"], default="straight")
+    d.add_argument("--shape", choices=["straight", "helix", "bezier", "ring"], default="straight",
+                   help="rod shape (default straight); ring: a closed, naturally round rod")
+    d.add_argument("--control", default=None,
+                   help="Bezier control points 'x,y,z; ...' [m] for --shape bezier (scaled to --length)")
     d.add_argument("--n-edges", type=_positive_int, default=40, help="edges per rod (default 40)")
     d.add_argument("--length", type=float, default=0.8, help="rod length [m] (default 0.8)")
     d.add_argument("--seconds", type=float, default=4.0, help="simulated time [s] (default 4)")
@@ -168,8 +173,9 @@ def main(argv: list[str] | None = None) -> int:
     d.add_argument("--radius", type=float, default=0.008, help="rod radius [m] (default 0.008)")
     d.add_argument("--density", type=float, default=1100.0, help="density [kg/m^3] (default 1100)")
     d.add_argument("--seed", type=int, default=0, help="seed of the rods' placement (default 0)")
-    d.add_argument("--overlay", choices=["none", "frames", "bend"], default="none",
-                   help="draw material frames or colour rods by curvature (default none)")
+    d.add_argument("--overlay", choices=["none", "frames", "bend", "twist"], default="none",
+                   help="draw material frames, or colour rods by bending or twisting strain (default none)")
+    d.add_argument("--still", default=None, help="also write the last frame to this PNG")
     d.add_argument("--quiet", action="store_true", help="no progress bar")
     d.set_defaults(func=drop)
 

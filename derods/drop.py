@@ -18,11 +18,15 @@ import numpy as np
 
 from . import render, shapes
 from .rod import Material, Rod
+from .twist import TwistBoundary
 from .world import ContactParams, World
 
 MJCF_DIR = pathlib.Path(__file__).resolve().parents[1] / "mjcf"
-SHAPES = ("straight", "helix", "bezier")
-OVERLAYS = ("none", "frames", "bend")
+SHAPES = ("straight", "helix", "bezier", "ring")
+OVERLAYS = ("none", "frames", "bend", "twist")
+#: Default control points of the "bezier" shape (scaled to the rod length).
+BEZIER_CONTROL = np.array([[0, 0, 0], [0.3, 0.5, 0], [0.6, -0.5, 0], [1.0, 0, 0],
+                           [1.3, 0.4, 0], [1.6, -0.2, 0], [2.0, 0.1, 0]]) * 0.5
 #: Rod colours (RGBA), cycled: warm and saturated, to stand out from the grey-blue scenes.
 COLOURS = [(0.9, 0.3, 0.15, 1), (0.95, 0.7, 0.1, 1), (0.2, 0.65, 0.3, 1), (0.75, 0.2, 0.55, 1),
            (0.15, 0.55, 0.85, 1), (0.55, 0.35, 0.2, 1)]
@@ -51,13 +55,17 @@ class DropParams:
     """What to drop and how to film it.
 
     scene: scene name or MJCF path. rods: number of rods. shape: "straight",
-    "helix" or "bezier". n_edges: edges per rod. length: rod length [m].
+    "helix", "bezier" (through ``control``, C1) or "ring" (a closed rod, naturally
+    round like an O-ring). control: Bezier control points, shape (3k+1, 3), scaled
+    to the rod length; None for a default wave. n_edges: edges per rod. length:
+    rod length [m].
     seconds: simulated time [s]. dt: time step [s]. fps: video frames per
     second. width, height: video size [pixels]. camera: camera name (None: the
     scene's "main", else MuJoCo's free camera). material: the rods' material.
     mass_damping: drag rate [1/s]. seed: random seed of the placement.
-    overlay: "none", "frames" (material frames as arrows: m1 pink, m2 green) or
-    "bend" (rods coloured by bending strain r kappa, blue straight to red at 5 %).
+    overlay: "none", "frames" (material frames as arrows: m1 pink, m2 green),
+    "bend" (rods coloured by bending strain r kappa, blue straight to red at 5 %)
+    or "twist" (coloured by twisting strain r tau, the same scale).
     """
 
     scene: str = "box"
@@ -75,6 +83,7 @@ class DropParams:
     mass_damping: float = 0.5
     seed: int = 0
     overlay: str = "none"
+    control: np.ndarray | None = None
 
     def __post_init__(self):
         if self.overlay not in OVERLAYS:
@@ -95,8 +104,11 @@ class DropParams:
                 raise ValueError(f"{name} must be a positive integer [pixels], got {v!r}")
 
 
-def rod_shape(shape: str, length: float, n_edges: int) -> np.ndarray:
-    """A rod of the given shape and arc length, centred at the origin, lying along x."""
+def rod_shape(shape: str, length: float, n_edges: int, control=None) -> np.ndarray:
+    """A rod of the given shape and arc length, centred at the origin, lying along x
+    (a ring: in the xy plane)."""
+    if shape == "ring":
+        return shapes.circle(length / (2 * math.pi), n_edges)
     if shape == "straight":
         x = shapes.straight(length, n_edges)
     elif shape == "helix":
@@ -104,8 +116,7 @@ def rod_shape(shape: str, length: float, n_edges: int) -> np.ndarray:
         pitch = math.sqrt(max((length / turns) ** 2 - (2 * math.pi * radius) ** 2, 1e-6))
         x = shapes.helix(radius, pitch, turns, n_edges)[:, [2, 0, 1]]  # axis along x
     else:
-        c = np.array([[0, 0, 0], [0.3, 0.5, 0], [0.6, -0.5, 0], [1.0, 0, 0],
-                      [1.3, 0.4, 0], [1.6, -0.2, 0], [2.0, 0.1, 0]]) * 0.5
+        c = BEZIER_CONTROL if control is None else np.asarray(control, float)
         x = shapes.bezier(c, n_edges, "C1")
         x *= length / np.sum(np.linalg.norm(np.diff(x, axis=0), axis=1))
     return x - x.mean(axis=0)
@@ -123,13 +134,15 @@ def build_world(p: DropParams) -> World:
     spread = float(site.size[0]) if site is not None else 0.3
     world = World(spec, dt=p.dt, mass_damping=p.mass_damping, contact=ContactParams(friction=0.8))
     rng = np.random.default_rng(p.seed)
-    base = rod_shape(p.shape, p.length, p.n_edges)
+    base = rod_shape(p.shape, p.length, p.n_edges, p.control)
+    ring = p.shape == "ring"
     for i in range(p.rods):
         yaw = math.pi * i / p.rods + rng.uniform(-0.2, 0.2)
         rot = np.array([[math.cos(yaw), -math.sin(yaw), 0], [math.sin(yaw), math.cos(yaw), 0], [0, 0, 1]])
         offset = np.array([*rng.uniform(-0.3, 0.3, size=2) * spread, 0.12 * i])
         x = base @ rot.T + centre + offset
-        world.add_rod(Rod(x, p.material), f"rod{i}", rgba=COLOURS[i % len(COLOURS)])
+        rod = Rod(x, p.material, closed=True, boundary=TwistBoundary("ring")) if ring else Rod(x, p.material)
+        world.add_rod(rod, f"rod{i}", rgba=COLOURS[i % len(COLOURS)])
     world.compile()
     return world
 
@@ -140,7 +153,7 @@ def overlay_painter(world: World, kind: str):
 
     if kind == "none":
         return None
-    if kind == "bend":
+    if kind in ("bend", "twist"):
         world.model.flex_rgba[:, 3] = 0.0  # the coloured tube replaces the flex
 
     def paint(scene):
@@ -154,24 +167,35 @@ def overlay_painter(world: World, kind: str):
                 overlay.add_frames(scene, xx, m1, m2, length=3.0 * h, width=0.5 * rod.material.radius,
                                    every=max(1, len(m1) // 20))
             else:
-                curvature = overlay.bending_strain(x, rod.closed)
-                colours = overlay.strain_colours(curvature, vmax=0.05 / rod.material.radius)
+                rate = (overlay.bending_strain(x, rod.closed) if kind == "bend"
+                        else overlay.twisting_strain(rod, world.rod_state(i)))
+                colours = overlay.strain_colours(rate, vmax=0.05 / rod.material.radius)
                 overlay.add_tube(scene, x, rod.material.radius, colours, closed=rod.closed)
 
     return paint
 
 
-def drop(p: DropParams, out, progress: bool = True) -> dict:
+def drop(p: DropParams, out, progress: bool = True, still=None) -> dict:
     """Simulate ``p`` and write an MP4 to ``out``; returns a summary dict.
 
-    The video appears at ``out`` only once complete (see :mod:`derods.render`).
+    still: optional PNG path for the last frame (overlays included).
+    The files appear only once complete (see :mod:`derods.render`).
     """
+    if still is not None:
+        render.check_output_path(still)
     out = render.check_output_path(out)
     world = build_world(p)
     cam_name = p.camera
     if cam_name is None and mujoco.mj_name2id(world.model, mujoco.mjtObj.mjOBJ_CAMERA, "main") >= 0:
         cam_name = "main"
+    paint = overlay_painter(world, p.overlay)
     frames = render.film(world, out, p.seconds, p.fps, p.width, p.height, cam_name,
-                         paint=overlay_painter(world, p.overlay), progress=progress, label=f"drop {p.scene}")
+                         paint=paint, progress=progress, label=f"drop {p.scene}")
+    if still is not None:
+        cam = render.Camera(world.model, p.width, p.height, cam_name)
+        try:
+            render.write_image(still, cam.render(world.data, paint))
+        finally:
+            cam.close()
     return {"out": str(out), "frames": frames, "sim_s": world.time, "steps": world.n_steps,
             "rods": world.rod_names, "mode": world.mode}

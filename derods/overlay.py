@@ -83,3 +83,22 @@ def bending_strain(x: np.ndarray, closed: bool) -> np.ndarray:
     out[:-1] += 0.5 * k_joint
     out[1:] += 0.5 * k_joint
     return out
+
+
+def twisting_strain(rod, state) -> np.ndarray:
+    """Twist rate per edge [rad/m], shape (n_edges,): m_k / (l_k / 2) at the joints
+    (the material frame's turn per Voronoi length), averaged onto edges. Times the
+    radius it is the shear strain of twisting."""
+    from .frames import reference_twist
+    from .geometry import joint_pairs
+
+    th_a, th_b = joint_pairs(state.theta[..., None], rod.closed)
+    m = th_b[..., 0] - th_a[..., 0] + reference_twist(state.u, state.t, rod.closed)
+    m = m + rod.boundary.seam_offset(len(m)) - rod.mbar
+    rate = np.abs(m) / (0.5 * rod.vlen)
+    if rod.closed:
+        return 0.5 * (rate + np.roll(rate, -1))
+    out = np.zeros(len(rate) + 1)
+    out[:-1] += 0.5 * rate
+    out[1:] += 0.5 * rate
+    return out

@@ -104,3 +104,21 @@ def test_overlays_draw_frames_and_bending_colours():
     assert near(framed, (240, 90, 165)) > near(plain, (240, 90, 165)) + 10  # pink arrows
     assert near(bent, (60, 100, 220)) > 50  # straight parts blue
     assert near(bent, (235, 120, 40), tol=50) + near(bent, (230, 60, 30), tol=50) > 5  # bends warm
+
+
+def test_rings_bezier_and_a_still(tmp_path, capsys):
+    """--shape ring drops closed rods; --control sets Bezier points; --still saves the last frame."""
+    out, still = tmp_path / "ring.mp4", tmp_path / "ring.png"
+    assert main(["drop", "--shape", "ring", "--overlay", "twist", "--still", str(still), "--out", str(out)]
+                + SMALL) == 0
+    img = render._ffmpeg_for_mediapy().read_image(still)
+    assert img.shape == (180, 320, 3)
+    world = drop.build_world(drop.DropParams(shape="ring", rods=1, n_edges=20))
+    assert world.rods[0].closed
+    out2 = tmp_path / "bz.mp4"
+    assert main(["drop", "--shape", "bezier", "--control", "0,0,0; 0.2,0.4,0; 0.4,-0.4,0; 0.6,0,0",
+                 "--out", str(out2)] + SMALL) == 0
+    assert out2.is_file()
+    assert main(["drop", "--still", "/nonexistent/x.png", "--out", str(tmp_path / "z.mp4")] + SMALL) == 2
+    assert "does not exist" in capsys.readouterr().err
+    assert not (tmp_path / "z.mp4").exists()
