@@ -164,7 +164,7 @@ def overlay_painter(world: World, kind: str):
                 m1, m2 = frames.material_frames(st.u, frames.tangents(x, rod.closed), st.theta)
                 h = float(np.mean(rod.rest_len))
                 xx = np.concatenate([x, x[:1]]) if rod.closed else x
-                overlay.add_frames(scene, xx, m1, m2, length=3.0 * h, width=0.5 * rod.material.radius,
+                overlay.add_frames(scene, xx, m1, m2, length=4.0 * h, width=0.7 * rod.material.radius,
                                    every=max(1, len(m1) // 20))
             else:
                 rate = (overlay.bending_strain(x, rod.closed) if kind == "bend"
