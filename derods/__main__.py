@@ -5,6 +5,7 @@ Commands:
   frames  draw a Bezier rod with its Bishop frames to a PNG (C0 or C1 joins).
   michell draw twisted rings below and above Michell's critical twist to a PNG.
   view    open a scene with rods in MuJoCo's interactive viewer (needs a display).
+  compare sweep benchmark cases over backends and resolutions; write a report.
   demo    build rods from the paper's test cases and print their frames and energies.
   bench   run a benchmark case (cantilever, frequency, drop, michell, circle, twist) and print records.
 """
@@ -142,6 +143,28 @@ def michell_cmd(args: argparse.Namespace) -> int:
     return 0
 
 
+def compare_cmd(args: argparse.Namespace) -> int:
+    """``derods compare``: see :mod:`derods.compare`."""
+    import concurrent.futures
+    import pathlib
+
+    from derods import compare
+
+    results = pathlib.Path(args.results)
+    if not args.report_only:
+        jobs = compare.plan(args.cases.split(","), args.backends.split(","),
+                            [int(v) for v in args.n_edges.split(",")], [float(v) for v in args.dt.split(",")],
+                            tuple(args.modes.split(",")), young=args.young)
+        if args.workers > 1:
+            with concurrent.futures.ProcessPoolExecutor(args.workers) as ex:
+                compare.sweep(jobs, results, ex)
+        else:
+            compare.sweep(jobs, results)
+    path = compare.report(results, args.report_dir, command="python -m derods " + " ".join(sys.argv[1:]))
+    print(f"wrote {path}")
+    return 0
+
+
 def bench(args: argparse.Namespace) -> int:
     """``derods bench CASE``: see :mod:`derods.bench`."""
     from derods import bench as bench_mod
@@ -189,6 +212,19 @@ def main(argv: list[str] | None = None) -> int:
     f.add_argument("--out", default="frames.png", help="output PNG (default frames.png)")
     f.set_defaults(func=frames_cmd)
 
+    c = sub.add_parser("compare", help="sweep cases x backends x n x dt; append records; write a report")
+    c.add_argument("--cases", default="cantilever,frequency,circle,drop", help="comma-separated cases")
+    c.add_argument("--backends", default="der,flex", help="comma-separated backends (der, flex, cable)")
+    c.add_argument("--n-edges", default="10,20,50,100", help="comma-separated edge counts")
+    c.add_argument("--dt", default="1e-2", help="comma-separated time steps [s]")
+    c.add_argument("--modes", default="implicit", help="derods modes (implicit, explicit, projection)")
+    c.add_argument("--young", type=float, default=1e8, help="Young's modulus E [Pa] (default 1e8)")
+    c.add_argument("--results", default="results.jsonl", help="JSON-lines results file (appended, resumable)")
+    c.add_argument("--report-dir", default="report", help="folder for report.md and its plots")
+    c.add_argument("--workers", type=int, default=1, help="parallel processes (default 1)")
+    c.add_argument("--report-only", action="store_true", help="only write the report from the results file")
+    c.set_defaults(func=compare_cmd)
+
     v = sub.add_parser("view", help="open a scene with rods in MuJoCo's interactive viewer")
     v.add_argument("--scene", default="box", help="scene name or MJCF path (default box)")
     v.add_argument("--rods", type=int, default=3, help="number of rods (default 3)")
@@ -215,7 +251,8 @@ def main(argv: list[str] | None = None) -> int:
 
     b = sub.add_parser("bench", help="run a benchmark case and print one record per run")
     b.add_argument("case", choices=["cantilever", "frequency", "drop", "michell", "circle", "twist"])
-    b.add_argument("--backend", default="der", help="der (default)")
+    b.add_argument("--backend", default="der", choices=["der", "flex", "cable"],
+                   help="der (default), flex (MuJoCo's 1D flexcomp), cable (MuJoCo 3.x)")
     b.add_argument("--n-edges", type=_positive_int, default=None, help="edges per rod (default 20)")
     b.add_argument("--dt", type=float, default=None, help="time step [s] (default 1e-2)")
     b.add_argument("--young", type=float, default=None, help="Young's modulus E [Pa] (default 1e8)")

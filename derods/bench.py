@@ -47,14 +47,18 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from . import reference, shapes
+from . import native, reference, shapes
 from .rod import Material, Rod
 from .twist import TwistBoundary
 from .world import DivergenceError, World
 
 MJCF_DIR = pathlib.Path(__file__).resolve().parents[1] / "mjcf"
 CASES = ("cantilever", "frequency", "drop", "michell", "circle", "twist")
-BACKENDS = ("der",)
+BACKENDS = ("der", "flex", "cable")
+#: Cases each backend can run.
+BACKEND_CASES = {"der": ("cantilever", "frequency", "drop", "michell", "circle", "twist"),
+                 "flex": ("cantilever", "frequency", "drop", "circle"),
+                 "cable": ()}
 
 #: A dropped rod is at rest when no vertex moves faster than this [m/s].
 REST_SPEED = 1e-3
@@ -86,10 +90,13 @@ class CaseParams:
 
     def __post_init__(self):
         if self.backend not in BACKENDS:
-            raise ValueError(
-                f"backend {self.backend!r} is not available yet; available: {BACKENDS} "
-                "(MuJoCo's native flex and cable rods arrive with the comparison tools)"
-            )
+            raise ValueError(f"backend must be one of {BACKENDS}, got {self.backend!r}")
+        if self.backend == "flex" and not native.has_flex_elasticity():
+            raise ValueError(f"backend 'flex' needs MuJoCo >= 3.17 (1D flex elasticity); this is "
+                             f"{mujoco.__version__}: pip install -U mujoco")
+        if self.backend == "cable":
+            raise ValueError("backend 'cable' (MuJoCo 3.x's cable plugin, removed in 4.0) is not "
+                             "implemented yet; use --backend der or flex")
         if self.mode not in ("implicit", "explicit", "projection"):
             raise ValueError(f"mode must be 'implicit', 'explicit' or 'projection', got {self.mode!r}")
         if int(self.n_edges) != self.n_edges or self.n_edges < 2:
@@ -117,7 +124,7 @@ def _record(case: str, p: CaseParams, world: World | None, measured, ref, stable
         "mujoco_version": mujoco.__version__,
         "n_edges": p.n_edges,
         "dt": p.dt,
-        "mode": p.mode,
+        "mode": p.mode if p.backend == "der" else "discrete",
         "young": p.young,
         "shear": mat.shear_modulus,
         "length": p.length,
@@ -144,12 +151,29 @@ def _first_mode_rate(p: CaseParams) -> float:
     return max(w1, math.sqrt(p.gravity / p.length) if p.gravity else 0.0)
 
 
-def _cantilever_world(p: CaseParams, gravity: float, damping: float) -> tuple[World, Rod]:
+def _cantilever_world(p: CaseParams, gravity: float, damping: float):
+    """A rod clamped at (0, 0, 1) m along +x, in the chosen backend.
+
+    Returns (world, rest vertex positions [m]). derods puts the clamp at the middle
+    of the first edge (:func:`derods.shapes.cantilever`); the native flexcomp pins
+    the first edge of a rod starting at the clamp, as a MuJoCo user would.
+    """
+    if p.backend == "flex":
+        x = shapes.straight(p.length, p.n_edges, start=(0.0, 0.0, 1.0))
+        rod, _ = native.flex_rod(x, p, pinned=(0, 1), gravity=(0.0, 0.0, -gravity), mass_damping=damping)
+        return rod, x
     rod = Rod(shapes.cantilever(p.length, p.n_edges, start=(0.0, 0.0, 1.0)), p.material)
     world = World(dt=p.dt, gravity=(0.0, 0.0, -gravity), mode=p.mode, mass_damping=damping)
     world.add_rod(rod, "rod", start="clamp")
     world.compile()
-    return world, rod
+    return world, rod.rest_x
+
+
+def _vertex_body(world, i: int) -> int:
+    """MuJoCo body id of vertex i of the benchmark's rod, in either backend."""
+    if isinstance(world, native.NativeRod):
+        return native.body_of_vertex(world, i)
+    return world.model.body(f"rod_{i}").id
 
 
 def cantilever(p: CaseParams, max_time: float = 30.0) -> list[dict]:
@@ -157,7 +181,7 @@ def cantilever(p: CaseParams, max_time: float = 30.0) -> list[dict]:
     mat = p.material
     ref = reference.cantilever_elastica(mat.line_density * p.gravity, p.length, mat.alpha)["tip_drop"]
     # Mass-proportional damping at 0.7 of critical on the slowest mode settles it fastest.
-    world, rod = _cantilever_world(p, p.gravity, 1.4 * _first_mode_rate(p))
+    world, _ = _cantilever_world(p, p.gravity, 1.4 * _first_mode_rate(p))
     chunk = max(1, int(round(0.1 / p.dt)))
     t0 = time.perf_counter()
     stable, measured, note = True, None, ""
@@ -179,13 +203,13 @@ def frequency(p: CaseParams, periods: int = 4) -> list[dict]:
     """First bending frequency of a clamped-free rod (REFERENCE.md case 4), no gravity."""
     mat = p.material
     ref = reference.cantilever_frequency(mat.alpha, mat.line_density, p.length)
-    world, rod = _cantilever_world(p, 0.0, 0.0)
+    world, rest_x = _cantilever_world(p, 0.0, 0.0)
     # Start from the static shape under a uniform load (97 % first mode), tip at 1 % of L,
     # keeping the clamped edge straight.
-    s = np.clip(rod.rest_x[:, 0], 0.0, None)
+    s = np.clip(rest_x[:, 0], 0.0, None)
     shape = s**2 * (6 * p.length**2 - 4 * p.length * s + s**2)
     shape[:2] = 0.0
-    x0 = rod.rest_x.copy()
+    x0 = rest_x.copy()
     x0[:, 2] += 0.01 * p.length * shape / shape[-1]
     world.set_positions("rod", x0)
     n_steps = int(math.ceil(periods / ref / p.dt))
@@ -216,10 +240,16 @@ def drop(p: CaseParams, sim_time: float = 3.0, mass_damping: float = 2.0) -> lis
         x -= x.mean(axis=0)
         # Centred 0.5 m above the floor; across the box, centred on its +x edge (x = 0.15).
         x += (0.15, 0.0, 0.7) if scene == "box_edge" else (0.0, 0.0, 0.5)
-        world = World(path, dt=p.dt, gravity=(0.0, 0.0, -p.gravity), mode=p.mode,
-                      mass_damping=mass_damping)
-        world.add_rod(Rod(x, p.material), "rod")
-        world.compile()
+        if p.backend == "flex":
+            geoms = '<geom type="plane" size="3 3 0.1"/>'
+            if scene == "box_edge":
+                geoms += '<geom type="box" size="0.15 0.15 0.1" pos="0 0 0.1"/>'
+            world, _ = native.flex_rod(x, p, scene_body=geoms, mass_damping=mass_damping)
+        else:
+            world = World(path, dt=p.dt, gravity=(0.0, 0.0, -p.gravity), mode=p.mode,
+                          mass_damping=mass_damping)
+            world.add_rod(Rod(x, p.material), "rod")
+            world.compile()
         t0 = time.perf_counter()
         stable, note = True, ""
         first_contact, deepest_late, deepest, rest_at = None, 0.0, 0.0, None
@@ -321,11 +351,9 @@ def circle(p: CaseParams, max_time: float = 300.0) -> list[dict]:
     """A clamped rod curled by the end couple 2 pi alpha / L (REFERENCE.md case 3)."""
     mat = p.material
     moment = 2 * math.pi * mat.alpha / p.length
-    rod = Rod(shapes.cantilever(p.length, p.n_edges, start=(0.0, 0.0, 1.0)), mat)
-    world = World(dt=p.dt, gravity=(0.0, 0.0, 0.0), mode=p.mode, mass_damping=10.0)
-    world.add_rod(rod, "rod", start="clamp")
-    tip = world.model.body(f"rod_{p.n_edges}").id
-    pre = world.model.body(f"rod_{p.n_edges - 1}").id
+    world, _ = _cantilever_world(p, 0.0, 10.0)
+    tip = _vertex_body(world, p.n_edges)
+    pre = _vertex_body(world, p.n_edges - 1)
     t0 = time.perf_counter()
     stable, note, measured = True, "", None
     try:
@@ -404,6 +432,9 @@ def run(case: str, params: CaseParams) -> list[dict]:
     """Run one case and return its records."""
     if case not in RUNNERS:
         raise ValueError(f"unknown case {case!r}; cases: {', '.join(CASES)}")
+    if case not in BACKEND_CASES[params.backend]:
+        raise ValueError(f"case {case!r} is not available for backend {params.backend!r} "
+                         f"(it runs {', '.join(BACKEND_CASES[params.backend]) or 'nothing yet'})")
     return RUNNERS[case](params)
 
 

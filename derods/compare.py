@@ -1,0 +1,228 @@
+"""Sweeps of the benchmark cases over backends and resolutions, and the report.
+
+:func:`sweep` runs every combination of cases x backends x n_edges x dt (x
+modes for derods) through :func:`derods.bench.run` and appends one JSON
+record per run to a results file as soon as it finishes: a crash or Ctrl-C
+loses nothing, and a re-run skips what the file already holds. Runs go through
+any ``concurrent.futures.Executor`` (``--workers N`` uses a process pool; a
+Dask or Ray executor spreads a large sweep over a cluster). Records from other
+environments (say, MuJoCo 3.17 for the cable) appended to the same file are
+merged into the same report.
+
+:func:`report` writes a Markdown page and PNG plots from the records alone.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import dataclasses
+import json
+import math
+import os
+import pathlib
+import platform
+import sys
+import time
+from collections import defaultdict
+
+from . import bench
+
+#: The fields that identify a run (a re-run with the same ones is skipped).
+KEY_FIELDS = ("case", "backend", "n_edges", "dt", "mode", "young", "length", "radius", "density")
+
+
+@dataclasses.dataclass(frozen=True)
+class Job:
+    case: str
+    params: bench.CaseParams
+
+    def key(self) -> tuple:
+        p = self.params
+        mode = p.mode if p.backend == "der" else "discrete"
+        return (self.case, p.backend, p.n_edges, float(p.dt), mode, float(p.young), float(p.length),
+                float(p.radius), float(p.density))
+
+
+def record_key(rec: dict) -> tuple:
+    return tuple(float(rec[k]) if isinstance(rec[k], (int, float)) and k not in ("n_edges",) else rec[k]
+                 for k in KEY_FIELDS)
+
+
+def load(path) -> list[dict]:
+    """Records of a results file (JSON lines); a torn last line from a crash is ignored."""
+    path = pathlib.Path(path)
+    if not path.exists():
+        return []
+    out = []
+    for line in path.read_text().splitlines():
+        try:
+            out.append(json.loads(line))
+        except json.JSONDecodeError:
+            continue
+    return out
+
+
+def plan(cases, backends, n_edges, dts, modes=("implicit",), young=1e8, **params) -> list[Job]:
+    """Every supported combination as a list of jobs."""
+    jobs = []
+    for case in cases:
+        for backend in backends:
+            if case not in bench.BACKEND_CASES.get(backend, ()):
+                continue
+            for n in n_edges:
+                for dt in dts:
+                    for mode in (modes if backend == "der" else ("implicit",)):
+                        p = bench.CaseParams(n_edges=n, dt=dt, young=young, mode=mode, backend=backend, **params)
+                        jobs.append(Job(case, p))
+    return jobs
+
+
+def _run(job: Job) -> list[dict]:
+    try:
+        return bench.run(job.case, job.params)
+    except Exception as err:  # a record of the failure is itself a result
+        p = job.params
+        return [{"case": job.case, "backend": p.backend, "n_edges": p.n_edges, "dt": p.dt,
+                 "mode": p.mode if p.backend == "der" else "discrete", "young": p.young, "length": p.length,
+                 "radius": p.radius, "density": p.density, "stable": False, "measured": None,
+                 "rel_error": None, "wall_s": 0.0, "note": f"{type(err).__name__}: {err}"}]
+
+
+def sweep(jobs: list[Job], results, executor: concurrent.futures.Executor | None = None,
+          progress: bool = True) -> int:
+    """Run the jobs not yet in ``results`` (a JSON-lines file), appending records as they finish.
+
+    executor: where to run them (default: in this process). Returns the number of runs made.
+    """
+    results = pathlib.Path(results)
+    if not results.parent.is_dir():
+        raise ValueError(f"results folder {str(results.parent)!r} does not exist; create it first")
+    done = {record_key(r) for r in load(results)}
+    todo = [j for j in jobs if j.key() not in done]
+    if progress:
+        print(f"{len(jobs) - len(todo)} of {len(jobs)} runs already in {results}; {len(todo)} to go",
+              file=sys.stderr)
+
+    def write(records):
+        # A crash may have left a torn last line: start on a fresh one.
+        if results.exists() and results.stat().st_size:
+            with open(results, "rb") as f:
+                f.seek(-1, os.SEEK_END)
+                torn = f.read(1) != b"\n"
+            if torn:
+                with open(results, "a") as f:
+                    f.write("\n")
+        with open(results, "a") as f:
+            for rec in records:
+                f.write(json.dumps(rec) + "\n")
+            f.flush()
+            os.fsync(f.fileno())
+
+    if executor is None:
+        for i, job in enumerate(todo):
+            write(_run(job))
+            if progress:
+                print(f"[{i + 1}/{len(todo)}] {job.case} {job.params.backend} n={job.params.n_edges} "
+                      f"dt={job.params.dt:g}", file=sys.stderr)
+    else:
+        futures = {executor.submit(_run, job): job for job in todo}
+        for i, fut in enumerate(concurrent.futures.as_completed(futures)):
+            write(fut.result())
+            if progress:
+                job = futures[fut]
+                print(f"[{i + 1}/{len(todo)}] {job.case} {job.params.backend} n={job.params.n_edges} "
+                      f"dt={job.params.dt:g}", file=sys.stderr)
+    return len(todo)
+
+
+def _series(records):
+    """Records grouped by (case, backend, mode, dt) -> sorted by n."""
+    groups = defaultdict(list)
+    for r in records:
+        if r.get("stable") and r.get("rel_error") is not None and r.get("wall_s"):
+            groups[(r["case"], r["backend"], r.get("mode"), r["dt"])].append(r)
+    return {k: sorted(v, key=lambda r: r["n_edges"]) for k, v in groups.items()}
+
+
+def pareto(points: list[tuple[float, float]]) -> list[int]:
+    """Indices of the points (cost, error) that no other point beats in both."""
+    order = sorted(range(len(points)), key=lambda i: (points[i][0], points[i][1]))
+    front, best = [], math.inf
+    for i in order:
+        if points[i][1] < best:
+            front.append(i)
+            best = points[i][1]
+    return front
+
+
+def fastest_to(records, case: str, threshold: float):
+    """(backend/mode label, wall [s], n, dt) of the cheapest run with |error| <= threshold, or None."""
+    best = None
+    for r in records:
+        if r["case"] != case or not r.get("stable") or r.get("rel_error") is None:
+            continue
+        if abs(r["rel_error"]) <= threshold and (best is None or r["wall_s"] < best[1]):
+            best = (f"{r['backend']}/{r.get('mode')}", r["wall_s"], r["n_edges"], r["dt"])
+    return best
+
+
+def report(results, out_dir, command: str = "") -> pathlib.Path:
+    """Write report.md and one error-vs-wall-time PNG per case into ``out_dir``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    records = load(results)
+    out_dir = pathlib.Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    series = _series(records)
+    cases = sorted({r["case"] for r in records})
+    lines = ["# derods against MuJoCo's native rods", ""]
+    versions = sorted({(r.get("backend"), r.get("mujoco_version")) for r in records})
+    lines += [f"Generated {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} from {len(records)} records "
+              f"in `{pathlib.Path(results).name}`" + (f" by `{command}`" if command else "") + ".",
+              f"Machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}; "
+              "MuJoCo per backend: " + ", ".join(f"{b} {v}" for b, v in versions) + ".", ""]
+    for case in cases:
+        fig, ax = plt.subplots(figsize=(6.4, 4.2))
+        pts, labels = [], []
+        for (c, backend, mode, dt), recs in sorted(series.items()):
+            if c != case:
+                continue
+            xs = [r["wall_s"] for r in recs]
+            ys = [max(abs(r["rel_error"]), 1e-7) for r in recs]
+            label = f"{backend}/{mode} dt={dt:g}"
+            ax.loglog(xs, ys, "o-", label=label)
+            for r, x, y in zip(recs, xs, ys):
+                ax.annotate(str(r["n_edges"]), (x, y), fontsize=7, xytext=(3, 3), textcoords="offset points")
+                pts.append((x, y))
+                labels.append(label)
+        for i in pareto(pts):
+            ax.loglog(*pts[i], "s", mfc="none", mec="k", ms=11)
+        ax.set_xlabel("wall time of the run [s]")
+        ax.set_ylabel("|relative error|")
+        ax.set_title(f"{case}: error against run time (squares: Pareto front; labels: n)")
+        ax.grid(True, which="both", alpha=0.3)
+        if pts:
+            ax.legend(fontsize=7)
+        fig.tight_layout()
+        png = out_dir / f"{case}.png"
+        fig.savefig(png, dpi=110)
+        plt.close(fig)
+        lines += [f"## {case}", "", f"![{case}]({png.name})", "",
+                  "| target error | fastest run (backend/mode, wall, n, dt) |", "|---|---|"]
+        for thr in (0.1, 0.01, 0.001):
+            best = fastest_to(records, case, thr)
+            txt = "none reached it" if best is None else f"{best[0]}: {best[1]:.3f} s (n = {best[2]}, dt = {best[3]:g})"
+            lines.append(f"| {100 * thr:g} % | {txt} |")
+        bad = [r for r in records if r["case"] == case and not r.get("stable")]
+        if bad:
+            lines += ["", "Unstable or failed runs: " + "; ".join(
+                f"{r['backend']}/{r.get('mode')} n={r['n_edges']} dt={r['dt']:g}" for r in bad)]
+        lines.append("")
+    path = out_dir / "report.md"
+    tmp = path.with_suffix(".md.tmp")
+    tmp.write_text("\n".join(lines) + "\n")
+    os.replace(tmp, path)
+    return path
