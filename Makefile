@@ -4,7 +4,7 @@ PYTHON ?= python3
 VENV := .venv
 STAMP := $(VENV)/.installed
 
-.PHONY: demo core-demo test bench clean
+.PHONY: demo core-demo test bench report clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -25,6 +25,11 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(VENV)/bin/python benchmarks/bench_core.py
+
+# The sample comparison report (docs/report/): accuracy sweeps, stability map and extreme
+# cases for derods and MuJoCo's native flexcomp. Resumes where a previous run stopped.
+report: $(STAMP)
+	$(VENV)/bin/python -m derods compare --full --workers 2 --results docs/report/results.jsonl --report-dir docs/report
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -151,7 +151,14 @@ def compare_cmd(args: argparse.Namespace) -> int:
     from derods import compare
 
     results = pathlib.Path(args.results)
-    if not args.report_only:
+    if args.full:
+        jobs = compare.full_plan()
+        if args.workers > 1:
+            with concurrent.futures.ProcessPoolExecutor(args.workers) as ex:
+                compare.sweep(jobs, results, ex)
+        else:
+            compare.sweep(jobs, results)
+    elif not args.report_only:
         jobs = compare.plan(args.cases.split(","), args.backends.split(","),
                             [int(v) for v in args.n_edges.split(",")], [float(v) for v in args.dt.split(",")],
                             tuple(args.modes.split(",")), young=args.young)
@@ -223,6 +230,8 @@ def main(argv: list[str] | None = None) -> int:
     c.add_argument("--report-dir", default="report", help="folder for report.md and its plots")
     c.add_argument("--workers", type=int, default=1, help="parallel processes (default 1)")
     c.add_argument("--report-only", action="store_true", help="only write the report from the results file")
+    c.add_argument("--full", action="store_true",
+                   help="the sample report's sweep: accuracy, stability map, extreme cases")
     c.set_defaults(func=compare_cmd)
 
     v = sub.add_parser("view", help="open a scene with rods in MuJoCo's interactive viewer")
@@ -250,7 +259,8 @@ def main(argv: list[str] | None = None) -> int:
     p.set_defaults(func=demo)
 
     b = sub.add_parser("bench", help="run a benchmark case and print one record per run")
-    b.add_argument("case", choices=["cantilever", "frequency", "drop", "michell", "circle", "twist"])
+    b.add_argument("case", choices=["cantilever", "frequency", "drop", "michell", "circle", "twist", "stability",
+                                           "extreme"])
     b.add_argument("--backend", default="der", choices=["der", "flex", "cable"],
                    help="der (default), flex (MuJoCo's 1D flexcomp), cable (MuJoCo 3.x)")
     b.add_argument("--n-edges", type=_positive_int, default=None, help="edges per rod (default 20)")

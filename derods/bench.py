@@ -50,14 +50,15 @@ import numpy as np
 from . import native, reference, shapes
 from .rod import Material, Rod
 from .twist import TwistBoundary
-from .world import DivergenceError, World
+from .world import ContactParams, DivergenceError, World
 
 MJCF_DIR = pathlib.Path(__file__).resolve().parents[1] / "mjcf"
-CASES = ("cantilever", "frequency", "drop", "michell", "circle", "twist")
+CASES = ("cantilever", "frequency", "drop", "michell", "circle", "twist", "stability", "extreme")
 BACKENDS = ("der", "flex", "cable")
 #: Cases each backend can run.
-BACKEND_CASES = {"der": ("cantilever", "frequency", "drop", "michell", "circle", "twist"),
-                 "flex": ("cantilever", "frequency", "drop", "circle"),
+BACKEND_CASES = {"der": ("cantilever", "frequency", "drop", "michell", "circle", "twist", "stability",
+                         "extreme"),
+                 "flex": ("cantilever", "frequency", "drop", "circle", "stability", "extreme"),
                  "cable": ()}
 
 #: A dropped rod is at rest when no vertex moves faster than this [m/s].
@@ -424,8 +425,132 @@ def twist(p: CaseParams, turns: float = 2.0, ramp: float = 2.0, hold: float = 3.
                     turned=turned if stable else None, twist_in_rod=twist_in_rod, note=note)]
 
 
+def _max_strain(x: np.ndarray, rest_x: np.ndarray) -> float:
+    le = np.linalg.norm(np.diff(x, axis=0), axis=1)
+    return float(np.max(np.abs(le / np.linalg.norm(np.diff(rest_x, axis=0), axis=1) - 1)))
+
+
+def stability(p: CaseParams, steps: int = 300) -> list[dict]:
+    """Is the cantilever stable at this E, n and dt? 300 steps from rest under gravity,
+    no damping, with a 1e-6 m/s random start (symmetric rods hide their instabilities).
+    Unstable: divergence reported (NaN, BADQACC, runaway speed), an edge stretched by
+    more than 50 %, or the tip farther than 1.5 L from the clamp. measured: 1 stable, 0 not."""
+    world, rest_x = _cantilever_world(p, p.gravity, 0.0)
+    rng = np.random.default_rng(0)
+    dofs = world.dofs if isinstance(world, native.NativeRod) else world._dofs
+    world.data.qvel[dofs] = rng.normal(scale=1e-6, size=len(dofs))
+    t0 = time.perf_counter()
+    stable, note = True, ""
+    try:
+        for _ in range(steps // 10):
+            world.step(10)
+            x = world.positions()
+            if _max_strain(x, rest_x) > 0.5 or np.linalg.norm(x[-1] - (0.0, 0.0, 1.0)) > 1.5 * p.length:
+                raise DivergenceError(f"runaway shape at step {world.n_steps}")
+    except DivergenceError as err:
+        stable, note = False, str(err)
+    wall = time.perf_counter() - t0
+    rec = _record("stability", p, world, 1.0 if stable else 0.0, 1.0, stable, wall, note=note)
+    rec["rel_error"] = None
+    rec["stable"] = stable
+    return [rec]
+
+
+def extreme(p: CaseParams) -> list[dict]:
+    """Extreme cases; measured: what happened ("stable", "diverged", "penetrated").
+
+    soft: E = 1e4 Pa cantilever; steel wire: E = 2e11 Pa, r = 0.5 mm cantilever;
+    impact: a free rod thrown at the floor at 20 m/s; hairpin: a rod folded back on
+    itself (bend radius 2 r) released; edge ratio: a cantilever whose second edge is
+    1000 times shorter than the others; ring 20 turns (derods only): a ring twisted
+    20 full turns (far above Michell's threshold) with self-contact.
+    """
+    out = []
+    variants = ["soft", "steel_wire", "impact", "hairpin", "edge_ratio"] + (["ring_20_turns"] if p.backend == "der" else [])
+    for name in variants:
+        q = p
+        t0 = time.perf_counter()
+        world, outcome, note = None, "stable", ""
+        try:
+            if name in ("soft", "steel_wire"):
+                q = dataclasses.replace(p, young=1e4) if name == "soft" else dataclasses.replace(
+                    p, young=2e11, radius=5e-4, density=7850.0)
+                world, rest_x = _cantilever_world(q, q.gravity, 1.0)
+                world.step(int(round(2.0 / q.dt)))
+            elif name == "impact":
+                x = shapes.straight(q.length, q.n_edges, start=(-0.5 * q.length, 0.0, 0.3),
+                                    direction=(1.0, 0.0, 0.3))
+                world = _free_rod(q, x, floor=True)
+                dofs = world.dofs if isinstance(world, native.NativeRod) else world._dofs
+                world.data.qvel[dofs] = np.tile([0.0, 0.0, -20.0], len(dofs) // 3)
+                deepest = 0.0
+                for _ in range(int(round(0.5 / q.dt))):
+                    world.step()
+                    deepest = max(deepest, q.radius - float(world.positions()[:, 2].min()))
+                if world.positions()[:, 2].min() < -q.radius:
+                    outcome = "penetrated"  # it went through the floor and stayed there
+                note = f"deepest penetration during impact {1000 * deepest:.1f} mm (r = {1000 * q.radius:g} mm)"
+            elif name == "hairpin":
+                k = q.n_edges // 2
+                s = np.linspace(0, q.length, q.n_edges + 1)
+                bend = 2 * q.radius
+                x = np.stack([np.where(s < q.length / 2, s, q.length - s), np.zeros_like(s),
+                              np.where(s < q.length / 2, 0.0, 2 * bend)], axis=1) + (0.0, 0.0, 0.5)
+                x[k] += (0.0, 0.0, bend)
+                world = _free_rod(q, x, floor=False)
+                world.step(int(round(1.0 / q.dt)))
+            elif name == "edge_ratio":
+                x = shapes.straight(q.length, q.n_edges, start=(0.0, 0.0, 1.0))
+                x[2] = x[1] + (x[2] - x[1]) * 1e-3
+                world = _clamped_rod(q, x)
+                world.step(int(round(1.0 / q.dt)))
+            else:  # ring_20_turns
+                x = shapes.circle(q.length / (2 * math.pi), q.n_edges, center=(0.0, 0.0, 0.5))
+                world = World(dt=q.dt, gravity=(0.0, 0.0, 0.0), mode=q.mode,
+                              contact=ContactParams(self_collision=True))
+                world.add_rod(Rod(x, q.material, closed=True, natural_curvature=False,
+                                  boundary=TwistBoundary("ring", total_twist=40 * math.pi)), "rod")
+                xp = x.copy()
+                xp[:, 2] += 1e-3 * np.sin(2 * np.linspace(0, 2 * math.pi, q.n_edges, endpoint=False))
+                world.set_positions("rod", xp)
+                world.step(int(round(1.0 / q.dt)))
+            if not np.all(np.isfinite(world.positions())):
+                outcome = "NaN"
+        except DivergenceError as err:
+            outcome, note = "diverged", str(err)
+        except Exception as err:  # a setup the backend refuses is an outcome too
+            outcome, note = "failed", f"{type(err).__name__}: {err}"
+        wall = time.perf_counter() - t0
+        rec = _record("extreme", q, world, None, None, outcome == "stable", wall, variant=name,
+                      outcome=outcome, note=note)
+        out.append(rec)
+    return out
+
+
+def _free_rod(p: CaseParams, x: np.ndarray, floor: bool):
+    if p.backend == "flex":
+        geoms = '<geom type="plane" size="3 3 0.1"/>' if floor else ""
+        rod, _ = native.flex_rod(x, p, scene_body=geoms)
+        return rod
+    world = World(MJCF_DIR / "floor.xml" if floor else None, dt=p.dt, gravity=(0.0, 0.0, -p.gravity),
+                  mode=p.mode)
+    world.add_rod(Rod(x, p.material, natural_curvature=False), "rod")
+    world.compile()
+    return world
+
+
+def _clamped_rod(p: CaseParams, x: np.ndarray):
+    if p.backend == "flex":
+        rod, _ = native.flex_rod(x, p, pinned=(0, 1))
+        return rod
+    world = World(dt=p.dt, gravity=(0.0, 0.0, -p.gravity), mode=p.mode)
+    world.add_rod(Rod(x, p.material), "rod", start="clamp")
+    world.compile()
+    return world
+
+
 RUNNERS = {"cantilever": cantilever, "frequency": frequency, "drop": drop, "michell": michell,
-           "circle": circle, "twist": twist}
+           "circle": circle, "twist": twist, "stability": stability, "extreme": extreme}
 
 
 def run(case: str, params: CaseParams) -> list[dict]:

@@ -106,7 +106,9 @@ class NativeRod:
         return float(self.data.time)
 
     def positions(self, name=None) -> np.ndarray:
-        return self.data.xpos[self.body_ids].copy()
+        # flexvert_xpos covers pinned vertices too (their "body" is the world).
+        adr, num = self.model.flex_vertadr[0], self.model.flex_vertnum[0]
+        return self.data.flexvert_xpos[adr:adr + num].copy()
 
     def velocities(self, name=None) -> np.ndarray:
         v = np.zeros((len(self.body_ids), 3))

@@ -71,3 +71,21 @@ def test_unknown_backend_case_is_an_error(capsys):
     assert "not available for backend 'flex'" in capsys.readouterr().err
     assert main(["bench", "cantilever", "--backend", "cable"]) == 2
     assert "cable" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("backend", ["der", "flex"])
+def test_stability_case(backend):
+    """Stable at dt = 1e-2 for E = 1e8 in both backends; derods' explicit mode is not."""
+    rec, = bench.stability(CaseParams(n_edges=10, backend=backend))
+    assert rec["stable"] and rec["measured"] == 1.0
+    if backend == "der":
+        rec, = bench.stability(CaseParams(n_edges=10, mode="explicit"))
+        assert not rec["stable"] and "diverged" in rec["note"]
+
+
+def test_extreme_cases_report_an_outcome_each():
+    recs = bench.extreme(CaseParams(n_edges=16, dt=2e-3))
+    assert [r["variant"] for r in recs] == ["soft", "steel_wire", "impact", "hairpin", "edge_ratio",
+                                            "ring_20_turns"]
+    assert all(r["outcome"] in ("stable", "diverged", "NaN", "penetrated", "failed") for r in recs)
+    assert {r["variant"]: r["outcome"] for r in recs}["steel_wire"] == "stable"
