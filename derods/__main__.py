@@ -151,22 +151,18 @@ def compare_cmd(args: argparse.Namespace) -> int:
     from derods import compare
 
     results = pathlib.Path(args.results)
+    jobs = []
     if args.full:
         jobs = compare.full_plan()
-        if args.workers > 1:
-            with concurrent.futures.ProcessPoolExecutor(args.workers) as ex:
-                compare.sweep(jobs, results, ex)
-        else:
-            compare.sweep(jobs, results)
     elif not args.report_only:
         jobs = compare.plan(args.cases.split(","), args.backends.split(","),
                             [int(v) for v in args.n_edges.split(",")], [float(v) for v in args.dt.split(",")],
                             tuple(args.modes.split(",")), young=args.young)
-        if args.workers > 1:
-            with concurrent.futures.ProcessPoolExecutor(args.workers) as ex:
-                compare.sweep(jobs, results, ex)
-        else:
-            compare.sweep(jobs, results)
+    if jobs and args.workers > 1:
+        with concurrent.futures.ProcessPoolExecutor(args.workers) as ex:
+            compare.sweep(jobs, results, ex)
+    elif jobs:
+        compare.sweep(jobs, results)
     path = compare.report(results, args.report_dir, command="python -m derods " + " ".join(sys.argv[1:]))
     print(f"wrote {path}")
     return 0
@@ -177,6 +173,13 @@ def bench(args: argparse.Namespace) -> int:
     from derods import bench as bench_mod
 
     return bench_mod.main(args.case, bench_mod.params_from_args(args), args.json)
+
+
+def _picture_args(parser: argparse.ArgumentParser, width: int, height: int, out: str) -> None:
+    """The --width, --height and --out options shared by the picture commands."""
+    parser.add_argument("--width", type=int, default=width, help=f"image width [pixels] (default {width})")
+    parser.add_argument("--height", type=int, default=height, help=f"image height [pixels] (default {height})")
+    parser.add_argument("--out", default=out, help=f"output PNG (default {out})")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -214,9 +217,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="control points 'x,y,z; x,y,z; ...' [m], 3k+1 of them (default: a two-segment demo)")
     f.add_argument("--continuity", choices=["C0", "C1"], default="C1", help="join continuity (default C1)")
     f.add_argument("--n-edges", type=_positive_int, default=40, help="edges (default 40)")
-    f.add_argument("--width", type=int, default=960, help="image width [pixels] (default 960)")
-    f.add_argument("--height", type=int, default=640, help="image height [pixels] (default 640)")
-    f.add_argument("--out", default="frames.png", help="output PNG (default frames.png)")
+    _picture_args(f, 960, 640, "frames.png")
     f.set_defaults(func=frames_cmd)
 
     c = sub.add_parser("compare", help="sweep cases x backends x n x dt; append records; write a report")
@@ -246,9 +247,7 @@ def main(argv: list[str] | None = None) -> int:
     mi.add_argument("--below", type=float, default=0.9, help="left ring's twist / Theta_c (default 0.9)")
     mi.add_argument("--above", type=float, default=1.2, help="right ring's twist / Theta_c (default 1.2)")
     mi.add_argument("--seconds", type=float, default=4.0, help="simulated time [s] (default 4)")
-    mi.add_argument("--width", type=int, default=960, help="image width [pixels] (default 960)")
-    mi.add_argument("--height", type=int, default=480, help="image height [pixels] (default 480)")
-    mi.add_argument("--out", default="michell.png", help="output PNG (default michell.png)")
+    _picture_args(mi, 960, 480, "michell.png")
     mi.set_defaults(func=michell_cmd)
 
     p = sub.add_parser("demo", help="build rods from the paper's test cases and print frames and energies")

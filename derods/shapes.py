@@ -189,3 +189,27 @@ def cantilever(length: float, n_edges: int, start=(0.0, 0.0, 0.0), direction=(1.
     h = length / (n - 0.5) if clamped_ends == 1 else length / (n - 1)
     s = -0.5 * h + h * np.arange(n + 1)
     return np.asarray(start, dtype=float) + s[:, None] * d
+
+
+def overhand_knot(scale: float = 0.02, tail: float = 0.2, n_edges: int = 100,
+                  height: float = 0.5) -> np.ndarray:
+    """A loose overhand knot lying flat: a trefoil opened at its outermost lobe, with tails.
+
+    The trefoil (sin t + 2 sin 2t, cos t - 2 cos 2t, -sin 3t) times ``scale`` [m] is cut
+    open where it reaches farthest from its axis, and radial tails of length ``tail``
+    [m] are added to both cut ends, so closing the tails far away gives back a trefoil.
+    Returns ``n_edges`` + 1 vertices [m] at equal arc length, lifted by ``height`` [m].
+    """
+    _checks.positive("scale", scale, "m")
+    _checks.positive("tail", tail, "m")
+    t0, cut = np.pi / 3, 0.35
+    t = np.linspace(t0 + cut, t0 + 2 * np.pi - cut, 400)
+    c = np.stack([np.sin(t) + 2 * np.sin(2 * t), np.cos(t) - 2 * np.cos(2 * t), -np.sin(3 * t)], 1) * scale
+
+    def outward(p):
+        v = np.array([p[0], p[1], 0.0])
+        return v / np.linalg.norm(v)
+
+    head = np.stack([c[0] + outward(c[0]) * s for s in np.linspace(tail, 0, 40, endpoint=False)])
+    foot = np.stack([c[-1] + outward(c[-1]) * s for s in np.linspace(0, tail, 41)[1:]])
+    return resample(np.concatenate([head, c, foot]), n_edges) + (0.0, 0.0, height)

@@ -21,21 +21,6 @@ from derods import render, shapes
 from derods.world import ContactParams, World
 
 
-def overhand_knot(scale=0.02, tail=0.2, n_edges=100, height=0.5) -> np.ndarray:
-    """Vertices [m] of a loose overhand knot: a trefoil opened at a lobe, with radial tails."""
-    t0, cut = np.pi / 3, 0.35
-    t = np.linspace(t0 + cut, t0 + 2 * np.pi - cut, 400)
-    c = np.stack([np.sin(t) + 2 * np.sin(2 * t), np.cos(t) - 2 * np.cos(2 * t), -np.sin(3 * t)], 1) * scale
-
-    def outward(p):
-        v = np.array([p[0], p[1], 0.0])
-        return v / np.linalg.norm(v)
-
-    head = np.stack([c[0] + outward(c[0]) * s for s in np.linspace(tail, 0, 40, endpoint=False)])
-    foot = np.stack([c[-1] + outward(c[-1]) * s for s in np.linspace(0, tail, 41)[1:]])
-    return shapes.resample(np.concatenate([head, c, foot]), n_edges) + (0.0, 0.0, height)
-
-
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="out/examples", help="output folder (created)")
@@ -43,7 +28,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    x = overhand_knot()
+    x = shapes.overhand_knot()
     spec = mujoco.MjSpec()
     render.add_backdrop(spec)
     spec.worldbody.add_light(pos=[0, 0, 1.5], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])

@@ -27,28 +27,12 @@ def segment_distances(x: np.ndarray, min_gap: int = 3) -> np.ndarray:
     return np.linalg.norm(gap, axis=1)
 
 
-def overhand_knot(scale=0.02, tail=0.2, n_edges=100, height=0.5):
-    """A loose overhand knot: a trefoil opened at its outermost lobe, radial tails added."""
-    t0, cut = np.pi / 3, 0.35
-    t = np.linspace(t0 + cut, t0 + 2 * np.pi - cut, 400)
-    c = np.stack([np.sin(t) + 2 * np.sin(2 * t), np.cos(t) - 2 * np.cos(2 * t), -np.sin(3 * t)], 1) * scale
-
-    def outward(p):
-        v = np.array([p[0], p[1], 0.0])
-        return v / np.linalg.norm(v)
-
-    head = np.stack([c[0] + outward(c[0]) * s for s in np.linspace(tail, 0, 40, endpoint=False)])
-    foot = np.stack([c[-1] + outward(c[-1]) * s for s in np.linspace(0, tail, 41)[1:]])
-    x = shapes.resample(np.concatenate([head, c, foot]), n_edges)
-    return x + (0.0, 0.0, height)
-
-
 def test_overhand_knot_tightens_without_passing_through():
     """Both ends pulled apart at 0.15 m/s at dt = 2e-3 with flex self-collision: the knot
     closes onto itself (edges end up in contact, about 2 r apart) and no edge ever passes
     through another (the closest non-neighbouring edges stay more than r apart; measured:
     never below 0.0054 m for 2 r = 0.006 m)."""
-    x = overhand_knot()
+    x = shapes.overhand_knot()
     radius = 0.003
     assert np.linalg.norm(x[1] - x[0]) > 2 * radius  # else edges i, i+2 touch at rest
     spec = mujoco.MjSpec()
