@@ -211,13 +211,13 @@ def solve(system: ImplicitSystem, a0: np.ndarray, rows: Rows, max_iter: int = 30
     """
     n = system.n
     a = a0.copy()
+    am = np.zeros(n)  # A (a - a0), updated along the steps instead of recomputed
+    jar = rows.apply(a) - rows.aref
+    scale = np.max(np.abs(system.mass * a0)) + np.max(np.abs(rows.d * rows.aref)) + 1e-300
     it = 0
     for it in range(1, max_iter + 1):
-        jar = rows.apply(a) - rows.aref
-        active = jar < 0
-        w = np.where(active, rows.d, 0.0)
-        grad = system.a_matvec(a - a0) + rows.transpose_apply(w * jar, n)
-        scale = np.max(np.abs(system.mass * a0)) + np.max(np.abs(rows.d * rows.aref)) + 1e-300
+        w = np.where(jar < 0, rows.d, 0.0)
+        grad = am + rows.transpose_apply(w * jar, n)
         if np.max(np.abs(grad)) <= tol * scale:
             break
         delta = -_newton_step(system, rows, w, grad)
@@ -225,7 +225,7 @@ def solve(system: ImplicitSystem, a0: np.ndarray, rows: Rows, max_iter: int = 30
         jd = rows.apply(delta)
         ad = system.a_matvec(delta)
         d_a = delta @ ad
-        d_g = delta @ system.a_matvec(a - a0)
+        d_g = delta @ am
         t = 1.0
         for _ in range(20):
             r = jar + t * jd
@@ -237,6 +237,8 @@ def solve(system: ImplicitSystem, a0: np.ndarray, rows: Rows, max_iter: int = 30
             if abs(step) <= 1e-12 * max(1.0, abs(t)):
                 break
         a = a + t * delta
+        am = am + t * ad
+        jar = jar + t * jd
         if np.max(np.abs(t * delta)) <= tol * (np.max(np.abs(a)) + 1e-300):
             break
     jar = rows.apply(a) - rows.aref
