@@ -3,8 +3,11 @@
 PYTHON ?= python3
 VENV := .venv
 STAMP := $(VENV)/.installed
+# MuJoCo 4.0 removed the cable plugin: the cable backend runs in a second environment.
+VENV317 := .venv317
+STAMP317 := $(VENV317)/.installed
 
-.PHONY: demo core-demo test bench report clean
+.PHONY: demo core-demo test test317 venv317 bench report clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -26,10 +29,24 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(VENV)/bin/python benchmarks/bench_core.py
 
+$(STAMP317): pyproject.toml
+	$(PYTHON) -m venv $(VENV317)
+	$(VENV317)/bin/python -m pip install --quiet --upgrade pip
+	$(VENV317)/bin/python -m pip install --quiet "mujoco==3.17.0" -e '.[dev]'
+	touch $(STAMP317)
+
+venv317: $(STAMP317)
+
+# Quick checks in MuJoCo 3.17: derods, the flexcomp and the cable backend.
+test317: $(STAMP317)
+	$(VENV317)/bin/python -m pytest -q tests317
+
 # The sample comparison report (docs/report/): accuracy sweeps, stability map and extreme
 # cases for derods and MuJoCo's native flexcomp. Resumes where a previous run stopped.
-report: $(STAMP)
+report: $(STAMP) $(STAMP317)
+	$(VENV317)/bin/python -m derods compare --full --backends cable --workers 2 \
+		--results docs/report/results.jsonl --report-dir docs/report
 	$(VENV)/bin/python -m derods compare --full --workers 2 --results docs/report/results.jsonl --report-dir docs/report
 
 clean:
-	rm -rf $(VENV) build *.egg-info
+	rm -rf $(VENV) $(VENV317) build *.egg-info

@@ -153,7 +153,7 @@ def compare_cmd(args: argparse.Namespace) -> int:
     results = pathlib.Path(args.results)
     jobs = []
     if args.full:
-        jobs = compare.full_plan()
+        jobs = compare.full_plan(tuple(args.backends.split(",")))
     elif not args.report_only:
         jobs = compare.plan(args.cases.split(","), args.backends.split(","),
                             [int(v) for v in args.n_edges.split(",")], [float(v) for v in args.dt.split(",")],

@@ -59,7 +59,7 @@ BACKENDS = ("der", "flex", "cable")
 BACKEND_CASES = {"der": ("cantilever", "frequency", "drop", "michell", "circle", "twist", "stability",
                          "extreme"),
                  "flex": ("cantilever", "frequency", "drop", "circle", "stability", "extreme"),
-                 "cable": ()}
+                 "cable": ("cantilever", "circle", "drop", "stability")}
 
 #: A dropped rod is at rest when no vertex moves faster than this [m/s].
 REST_SPEED = 1e-3
@@ -95,9 +95,9 @@ class CaseParams:
         if self.backend == "flex" and not native.has_flex_elasticity():
             raise ValueError(f"backend 'flex' needs MuJoCo >= 3.17 (1D flex elasticity); this is "
                              f"{mujoco.__version__}: pip install -U mujoco")
-        if self.backend == "cable":
-            raise ValueError("backend 'cable' (MuJoCo 3.x's cable plugin, removed in 4.0) is not "
-                             "implemented yet; use --backend der or flex")
+        if self.backend == "cable" and not native.has_cable():
+            raise ValueError(f"backend 'cable' needs MuJoCo 3.x (the cable plugin was removed in 4.0; this "
+                             f"is {mujoco.__version__}); make venv317, then run with .venv317/bin/python")
         if self.mode not in ("implicit", "explicit", "projection"):
             raise ValueError(f"mode must be 'implicit', 'explicit' or 'projection', got {self.mode!r}")
         if int(self.n_edges) != self.n_edges or self.n_edges < 2:
@@ -125,7 +125,7 @@ def _record(case: str, p: CaseParams, world: World | None, measured, ref, stable
         "mujoco_version": mujoco.__version__,
         "n_edges": p.n_edges,
         "dt": p.dt,
-        "mode": p.mode if p.backend == "der" else "discrete",
+        "mode": p.mode if p.backend == "der" else ("discrete" if p.backend == "flex" else "implicitfast"),
         "young": p.young,
         "shear": mat.shear_modulus,
         "length": p.length,
@@ -163,6 +163,10 @@ def _cantilever_world(p: CaseParams, gravity: float, damping: float):
         x = shapes.straight(p.length, p.n_edges, start=(0.0, 0.0, 1.0))
         rod, _ = native.flex_rod(x, p, pinned=(0, 1), gravity=(0.0, 0.0, -gravity), mass_damping=damping)
         return rod, x
+    if p.backend == "cable":
+        # The cable's own damping (joint damping 0.01 E I / h, implicit) replaces mass damping.
+        x = shapes.straight(p.length, p.n_edges, start=(0.0, 0.0, 1.0))
+        return native.cable_rod(p, gravity=(0.0, 0.0, -gravity)), x
     rod = Rod(shapes.cantilever(p.length, p.n_edges, start=(0.0, 0.0, 1.0)), p.material)
     world = World(dt=p.dt, gravity=(0.0, 0.0, -gravity), mode=p.mode, mass_damping=damping)
     world.add_rod(rod, "rod", start="clamp")
@@ -171,9 +175,9 @@ def _cantilever_world(p: CaseParams, gravity: float, damping: float):
 
 
 def _vertex_body(world, i: int) -> int:
-    """MuJoCo body id of vertex i of the benchmark's rod, in either backend."""
+    """MuJoCo body id of vertex i of the benchmark's rod, in any backend."""
     if isinstance(world, native.NativeRod):
-        return native.body_of_vertex(world, i)
+        return native.body_of_vertex(world, min(i, len(world.body_ids) - 1))
     return world.model.body(f"rod_{i}").id
 
 
@@ -241,11 +245,15 @@ def drop(p: CaseParams, sim_time: float = 3.0, mass_damping: float = 2.0) -> lis
         x -= x.mean(axis=0)
         # Centred 0.5 m above the floor; across the box, centred on its +x edge (x = 0.15).
         x += (0.15, 0.0, 0.7) if scene == "box_edge" else (0.0, 0.0, 0.5)
-        if p.backend == "flex":
+        if p.backend in ("flex", "cable"):
             geoms = '<geom type="plane" size="3 3 0.1"/>'
             if scene == "box_edge":
                 geoms += '<geom type="box" size="0.15 0.15 0.1" pos="0 0 0.1"/>'
-            world, _ = native.flex_rod(x, p, scene_body=geoms, mass_damping=mass_damping)
+            if p.backend == "flex":
+                world, _ = native.flex_rod(x, p, scene_body=geoms, mass_damping=mass_damping)
+            else:
+                world = native.cable_rod(p, clamped=False, start=x[0], direction=x[-1] - x[0],
+                                         scene_body=geoms)
         else:
             world = World(path, dt=p.dt, gravity=(0.0, 0.0, -p.gravity), mode=p.mode,
                           mass_damping=mass_damping)
@@ -361,11 +369,15 @@ def circle(p: CaseParams, max_time: float = 300.0) -> list[dict]:
         while world.time < max_time:
             for _ in range(50):
                 # A couple on the last edge, in the xz plane, following the edge as it turns.
-                x = world.positions("rod")
-                e = x[-1] - x[-2]
-                force = moment / float(e @ e) * np.array([-e[2], 0.0, e[0]])
-                world.data.xfrc_applied[tip, :3] = force
-                world.data.xfrc_applied[pre, :3] = -force
+                if isinstance(world, native.CableRod):
+                    # A couple is a torque on the last segment (-y curls the rod upwards).
+                    world.data.xfrc_applied[tip, 3:] = (0.0, -moment, 0.0)
+                else:
+                    x = world.positions("rod")
+                    e = x[-1] - x[-2]
+                    force = moment / float(e @ e) * np.array([-e[2], 0.0, e[0]])
+                    world.data.xfrc_applied[tip, :3] = force
+                    world.data.xfrc_applied[pre, :3] = -force
                 world.step()
             if np.max(np.abs(world.velocities("rod"))) < SETTLE_SPEED * p.length:
                 break

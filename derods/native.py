@@ -160,3 +160,96 @@ def flex_rod(points: np.ndarray, p, pinned=(), gravity=None, closed: bool = Fals
     xml = flex_xml(points, mat.radius, mass, mat.young, nu, closed, pinned, p.dt, grav, scene_body)
     notes = {"poisson": nu, "poisson_clipped": clipped}
     return NativeRod(xml, mass_damping), notes
+
+
+def cable_xml(length: float, n_edges: int, radius: float, density: float, young: float, shear: float,
+              start=(0.0, 0.0, 1.0), direction=(1.0, 0.0, 0.0), clamped: bool = True, dt: float = 1e-2,
+              gravity=(0.0, 0.0, -9.81), joint_damping: float = 0.0, scene_body: str = "") -> str:
+    """MJCF of a MuJoCo 3.x cable (``<composite type="cable">`` with the elasticity plugin).
+
+    ``geom mass = rho A h`` per segment (the default density would add the capsules'
+    end caps: 3.7x too heavy at n = 200); ``initial="none"`` welds the first segment
+    (the clamp), ``"free"`` gives it a free joint; joint damping [N m s] on the ball
+    joints, implicit in MuJoCo's integrators.
+    """
+    h = length / n_edges
+    seg_mass = density * math.pi * radius**2 * h
+    d = np.asarray(direction, float) / np.linalg.norm(direction)
+    # curve "s" lays the cable along +x; "s s s" scaled per axis lays it along ``direction``.
+    along_x = np.allclose(d, (1.0, 0.0, 0.0))
+    curve = "s" if along_x else "s s s"
+    size = f"{length}" if along_x else " ".join(f"{length * c:.9g}" for c in d)
+    g = " ".join(f"{v:g}" for v in gravity)
+    return f"""<mujoco>
+  <extension><plugin plugin="mujoco.elasticity.cable"/></extension>
+  <compiler angle="radian"/>
+  <option timestep="{dt}" integrator="implicitfast" gravity="{g}"/>
+  <worldbody>
+    {scene_body}
+      <composite prefix="c" type="cable" curve="{curve}" count="{n_edges + 1} 1 1" size="{size}"
+                 offset="{start[0]} {start[1]} {start[2]}" initial="{'none' if clamped else 'free'}">
+        <plugin plugin="mujoco.elasticity.cable">
+          <config key="twist" value="{shear}"/>
+          <config key="bend" value="{young}"/>
+          <config key="vmax" value="0"/>
+        </plugin>
+        <joint kind="main" damping="{joint_damping}"/>
+        <geom type="capsule" size="{radius}" mass="{seg_mass}" rgba="0.85 0.55 0.2 1" condim="3"/>
+      </composite>
+  </worldbody>
+</mujoco>"""
+
+
+class CableRod(NativeRod):
+    """A MuJoCo 3.x cable with the World methods the benchmark cases use.
+
+    Vertices are the segment bodies' origins plus the tip site; velocities are the
+    linear velocities of those points.
+    """
+
+    def __init__(self, xml: str):
+        self.model = mujoco.MjModel.from_xml_string(xml)
+        self.data = mujoco.MjData(self.model)
+        m = self.model
+        names = [m.body(i).name for i in range(m.nbody)]
+        self.body_ids = np.array([i for i, nm in enumerate(names) if nm.startswith("cB_")])
+        self.tip_site = m.site("cS_last").id
+        self.dofs = np.arange(m.nv)
+        self.free = np.ones(len(self.body_ids) + 1, dtype=bool)
+        self.n_steps = 0
+        self._badqacc = 0
+        mujoco.mj_forward(m, self.data)
+
+    def positions(self, name=None) -> np.ndarray:
+        return np.concatenate([self.data.xpos[self.body_ids], self.data.site_xpos[[self.tip_site]]])
+
+    def velocities(self, name=None) -> np.ndarray:
+        m, d = self.model, self.data
+        out = np.zeros((len(self.body_ids) + 1, 3))
+        res = np.zeros(6)
+        for k, b in enumerate(self.body_ids):
+            mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, int(b), res, 0)
+            out[k] = res[3:]
+        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_SITE, int(self.tip_site), res, 0)
+        out[-1] = res[3:]
+        return out
+
+    def set_positions(self, name, x: np.ndarray) -> None:
+        raise NotImplementedError("a cable's shape is set through its joint angles, not vertex positions")
+
+
+def cable_rod(p, clamped: bool = True, gravity=None, start=(0.0, 0.0, 1.0), direction=(1.0, 0.0, 0.0),
+              joint_damping_time: float = 0.01, scene_body: str = "") -> CableRod:
+    """A cable for the benchmark parameters ``p``; joint damping = beta_d E I / h with
+    beta_d = ``joint_damping_time`` [s] (stiffness-proportional, implicit: the cable
+    needs it to be stable at large steps)."""
+    if not has_cable():
+        raise ValueError(f"the cable plugin was removed in MuJoCo 4.0 (this is {mujoco.__version__}); "
+                         "run in the MuJoCo 3.17 environment: make venv317")
+    mat = p.material
+    grav = (0.0, 0.0, -p.gravity) if gravity is None else gravity
+    h = p.length / p.n_edges
+    damping = joint_damping_time * mat.young * mat.second_moments[0] / h
+    xml = cable_xml(p.length, p.n_edges, mat.radius, mat.density, mat.young, mat.shear_modulus, start,
+                    direction, clamped, p.dt, grav, damping, scene_body)
+    return CableRod(xml)

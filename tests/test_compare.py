@@ -89,3 +89,10 @@ def test_extreme_cases_report_an_outcome_each():
                                             "ring_20_turns"]
     assert all(r["outcome"] in ("stable", "diverged", "NaN", "penetrated", "failed") for r in recs)
     assert {r["variant"]: r["outcome"] for r in recs}["steel_wire"] == "stable"
+
+
+def test_backend_missing_from_this_mujoco_is_skipped_with_a_message(capsys):
+    jobs = compare.plan(["cantilever"], ["der", "cable"], [8], [1e-2])
+    assert [j.params.backend for j in jobs] == ["der"]
+    err = capsys.readouterr().err
+    assert "skipping backend 'cable'" in err and "make venv317" in err

@@ -1,0 +1,33 @@
+"""Quick checks in the MuJoCo 3.17 environment (`make test317`): derods, the native
+flexcomp and the cable plugin, which MuJoCo 4.0 removed. Tolerances: the native rods'
+first-order clamp error measured in the baselines (cable about -2/n, flex -1.65/n)."""
+
+from __future__ import annotations
+
+import mujoco
+
+from derods import bench
+from derods.bench import CaseParams
+
+
+def test_this_is_mujoco_3_17():
+    assert mujoco.__version__.startswith("3.17")
+
+
+def test_derods_cantilever_on_3_17():
+    rec, = bench.cantilever(CaseParams(n_edges=20))
+    assert rec["stable"] and abs(rec["rel_error"]) < 0.01  # -0.25 % as on 4.0
+
+
+def test_flex_cantilever_on_3_17():
+    rec, = bench.cantilever(CaseParams(n_edges=20, backend="flex"))
+    assert rec["stable"] and -0.09 < rec["rel_error"] < -0.05  # -7.03 % (baselines: -7.03 %)
+
+
+def test_cable_cantilever_and_drop():
+    rec, = bench.cantilever(CaseParams(n_edges=20, backend="cable"))
+    assert rec["stable"] and -0.10 < rec["rel_error"] < -0.06  # -8.0 % (baselines: -8.05 %)
+    assert rec["mode"] == "implicitfast" and rec["mujoco_version"].startswith("3.17")
+    floor = [r for r in bench.drop(CaseParams(n_edges=20, backend="cable", young=1e7, dt=2e-3))
+             if r["scene"] == "floor"]
+    assert all(r["stable"] and r["at_rest"] for r in floor)
