@@ -112,12 +112,11 @@ class Rows:
         z = zpad[(_P - _Q)[None, :], self.col0[:, None] + _Q[None, :]]  # Z[col0+p, col0+q], p >= q
         weight = np.where(_P == _Q, 1.0, 2.0)
         diag_a = np.einsum("kt,kt,kt,t->k", self.jw[:, _P], self.jw[:, _Q], z, weight)
-        pad = np.concatenate
         for zvec, w in corrections:
-            zp = pad([zvec, np.zeros(_W)])
+            zp = np.concatenate([zvec, np.zeros(_W)])
             diag_a -= w * np.einsum("kw,kw->k", self.jw, zp[self._window()]) ** 2
         if self.jf is not None:
-            diag_a = pad([diag_a, np.einsum("kn,nk->k", self.jf, system.solve(self.jf.T))])
+            diag_a = np.concatenate([diag_a, np.einsum("kn,nk->k", self.jf, system.solve(self.jf.T))])
         self.d = 1.0 / (self.r_over_diag * diag_a)
 
 
