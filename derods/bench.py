@@ -59,7 +59,7 @@ BACKENDS = ("der", "flex", "cable")
 BACKEND_CASES = {"der": ("cantilever", "frequency", "drop", "michell", "circle", "twist", "stability",
                          "extreme"),
                  "flex": ("cantilever", "frequency", "drop", "circle", "stability", "extreme"),
-                 "cable": ("cantilever", "circle", "drop", "stability")}
+                 "cable": ("cantilever", "frequency", "circle", "drop", "stability")}
 
 #: A dropped rod is at rest when no vertex moves faster than this [m/s].
 REST_SPEED = 1e-3

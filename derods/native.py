@@ -235,7 +235,24 @@ class CableRod(NativeRod):
         return out
 
     def set_positions(self, name, x: np.ndarray) -> None:
-        raise NotImplementedError("a cable's shape is set through its joint angles, not vertex positions")
+        """Bend a clamped cable into the shape of ``x`` (its n + 1 vertices [m]), at rest.
+
+        A cable's shape lives in its ball joints: each segment is turned, relative to
+        the one before, by the angle between their directions in ``x``. Only shapes in
+        the xz plane (the benchmark's) are supported.
+        """
+        x = np.asarray(x, dtype=float)
+        if x.shape != (len(self.body_ids) + 1, 3) or np.max(np.abs(x[:, 1] - x[0, 1])) > 1e-12:
+            raise ValueError("set_positions on a cable takes n + 1 vertices in the xz plane")
+        e = np.diff(x, axis=0)
+        pitch = np.arctan2(e[:, 2], e[:, 0])  # angle of each segment above +x
+        m, d = self.model, self.data
+        for k, b in enumerate(self.body_ids[1:], start=1):
+            turn = pitch[k] - pitch[k - 1]  # about -y: +x turns towards +z
+            adr = m.jnt_qposadr[m.body_jntadr[b]]
+            d.qpos[adr:adr + 4] = [math.cos(turn / 2), 0.0, -math.sin(turn / 2), 0.0]
+        d.qvel[:] = 0.0
+        mujoco.mj_forward(m, d)
 
 
 def cable_rod(p, clamped: bool = True, gravity=None, start=(0.0, 0.0, 1.0), direction=(1.0, 0.0, 0.0),
