@@ -300,3 +300,51 @@ def band_matvec(ab, w):
             y[j + d] += ab[d, j] * w[j]
             y[j] += ab[d, j] * w[j + d]
     return y
+
+
+@nb.njit(cache=True)
+def rows_band(col0, jw, weights, n):
+    """Lower band (W, n) of sum_i w_i j_i j_i^T for rows j_i confined to windows
+    [col0_i, col0_i + W) with entries jw_i (W = jw.shape[1])."""
+    w_ = jw.shape[1]
+    out = np.zeros((w_, n))
+    for i in range(len(col0)):
+        wi = weights[i]
+        if wi == 0.0:
+            continue
+        c0 = col0[i]
+        for q in range(w_):
+            if c0 + q >= n:
+                break
+            jq = jw[i, q] * wi
+            if jq == 0.0:
+                continue
+            for p in range(q, w_):
+                if c0 + p >= n:
+                    break
+                out[p - q, c0 + q] += jw[i, p] * jq
+    return out
+
+
+@nb.njit(cache=True)
+def rows_diag(col0, jw, zb):
+    """j_i^T Z j_i for each windowed row, Z symmetric with lower band zb (>= W rows)."""
+    w_ = jw.shape[1]
+    n = zb.shape[1]
+    out = np.zeros(len(col0))
+    for i in range(len(col0)):
+        c0 = col0[i]
+        acc = 0.0
+        for q in range(w_):
+            if c0 + q >= n:
+                break
+            jq = jw[i, q]
+            if jq == 0.0:
+                continue
+            acc += jq * jq * zb[0, c0 + q]
+            for p in range(q + 1, w_):
+                if c0 + p >= n:
+                    break
+                acc += 2.0 * jw[i, p] * jq * zb[p - q, c0 + q]
+        out[i] = acc
+    return out

@@ -28,11 +28,11 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from ._kernels import rows_band, rows_diag
 from .implicit import ImplicitSystem
 from .stencil import XX_BANDWIDTH
 
 _W = XX_BANDWIDTH + 1  # width of a row's dof window that keeps the Hessian banded
-_P, _Q = np.tril_indices(_W)
 _SUPPORTED = (int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL),
               int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS))
 
@@ -49,7 +49,7 @@ class Rows:
     aref: reference acceleration [m/s^2], shape (k,). d: row weight 1/R, shape (k,).
     efc: the rows' indices in MuJoCo's efc arrays, shape (k,).
     r_over_diag: MuJoCo's R / diagA, shape (k,) (see :meth:`rescale`).
-    col0: first local dof of each banded row's window, shape (k_b,).
+    col0: first local dof of each banded row's window, shape (k_b,), int64.
     jw: banded rows' Jacobian entries in their windows, shape (k_b, 9).
     jf: far rows' Jacobians over all local dofs, shape (k_f, n).
     """
@@ -90,11 +90,7 @@ class Rows:
 
     def band(self, weights: np.ndarray, n: int) -> np.ndarray:
         """Lower band (9, n) of J_b^T diag(weights) J_b over the banded rows."""
-        w = weights[: self.n_banded]
-        vals = w[:, None] * self.jw[:, _P] * self.jw[:, _Q]
-        flat = (_P - _Q)[None, :] * (n + _W) + self.col0[:, None] + _Q[None, :]
-        out = np.bincount(flat.ravel(), vals.ravel(), minlength=_W * (n + _W))
-        return out.reshape(_W, n + _W)[:, :n]
+        return rows_band(self.col0, self.jw, np.ascontiguousarray(weights[: self.n_banded]), n)
 
     def rescale(self, system: ImplicitSystem) -> None:
         """Recompute the row weights D = 1 / R for the implicit metric.
@@ -108,10 +104,7 @@ class Rows:
         the band, and for far rows one solve each.
         """
         zb, corrections = system.inverse_diagonal_terms()
-        zpad = np.concatenate([zb, np.zeros((zb.shape[0], _W))], axis=1)
-        z = zpad[(_P - _Q)[None, :], self.col0[:, None] + _Q[None, :]]  # Z[col0+p, col0+q], p >= q
-        weight = np.where(_P == _Q, 1.0, 2.0)
-        diag_a = np.einsum("kt,kt,kt,t->k", self.jw[:, _P], self.jw[:, _Q], z, weight)
+        diag_a = rows_diag(self.col0, self.jw, zb)
         for zvec, w in corrections:
             zp = np.concatenate([zvec, np.zeros(_W)])
             diag_a -= w * np.einsum("kw,kw->k", self.jw, zp[self._window()]) ** 2
@@ -156,7 +149,8 @@ def rod_rows(model: mujoco.MjModel, data: mujoco.MjData, local_of_dof: np.ndarra
     hi = np.full(nefc, -1)
     np.minimum.at(lo, row[on_rod], local[on_rod])
     np.maximum.at(hi, row[on_rod], local[on_rod])
-    supported = np.isin(data.efc_type[:nefc], _SUPPORTED)
+    types = data.efc_type[:nefc]
+    supported = (types == _SUPPORTED[0]) | (types == _SUPPORTED[1])
     mine = touches & ~elsewhere & supported
     external = touches & ~mine
     if external.any():
