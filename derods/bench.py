@@ -159,19 +159,14 @@ def _cantilever_world(p: CaseParams, gravity: float, damping: float):
     of the first edge (:func:`derods.shapes.cantilever`); the native flexcomp pins
     the first edge of a rod starting at the clamp, as a MuJoCo user would.
     """
-    if p.backend == "flex":
-        x = shapes.straight(p.length, p.n_edges, start=(0.0, 0.0, 1.0))
-        rod, _ = native.flex_rod(x, p, pinned=(0, 1), gravity=(0.0, 0.0, -gravity), mass_damping=damping)
-        return rod, x
+    if p.backend == "der":
+        x = shapes.cantilever(p.length, p.n_edges, start=(0.0, 0.0, 1.0))
+        return _clamped_rod(p, x, gravity, damping), x
+    x = shapes.straight(p.length, p.n_edges, start=(0.0, 0.0, 1.0))
     if p.backend == "cable":
         # The cable's own damping (joint damping 0.01 E I / h, implicit) replaces mass damping.
-        x = shapes.straight(p.length, p.n_edges, start=(0.0, 0.0, 1.0))
         return native.cable_rod(p, gravity=(0.0, 0.0, -gravity)), x
-    rod = Rod(shapes.cantilever(p.length, p.n_edges, start=(0.0, 0.0, 1.0)), p.material)
-    world = World(dt=p.dt, gravity=(0.0, 0.0, -gravity), mode=p.mode, mass_damping=damping)
-    world.add_rod(rod, "rod", start="clamp")
-    world.compile()
-    return world, rod.rest_x
+    return _clamped_rod(p, x, gravity, damping), x
 
 
 def _vertex_body(world, i: int) -> int:
@@ -240,25 +235,11 @@ def drop(p: CaseParams, sim_time: float = 3.0, mass_damping: float = 2.0) -> lis
     """A free rod dropped flat and tilted onto the floor and across a box edge."""
     out = []
     for scene, tilt in (("floor", 0.0), ("floor", 0.3), ("box_edge", 0.0), ("box_edge", 0.3)):
-        path = MJCF_DIR / ("floor.xml" if scene == "floor" else "box.xml")
         x = shapes.straight(p.length, p.n_edges, direction=(math.cos(tilt), 0.0, math.sin(tilt)))
         x -= x.mean(axis=0)
         # Centred 0.5 m above the floor; across the box, centred on its +x edge (x = 0.15).
         x += (0.15, 0.0, 0.7) if scene == "box_edge" else (0.0, 0.0, 0.5)
-        if p.backend in ("flex", "cable"):
-            geoms = '<geom type="plane" size="3 3 0.1"/>'
-            if scene == "box_edge":
-                geoms += '<geom type="box" size="0.15 0.15 0.1" pos="0 0 0.1"/>'
-            if p.backend == "flex":
-                world, _ = native.flex_rod(x, p, scene_body=geoms, mass_damping=mass_damping)
-            else:
-                world = native.cable_rod(p, clamped=False, start=x[0], direction=x[-1] - x[0],
-                                         scene_body=geoms)
-        else:
-            world = World(path, dt=p.dt, gravity=(0.0, 0.0, -p.gravity), mode=p.mode,
-                          mass_damping=mass_damping)
-            world.add_rod(Rod(x, p.material), "rod")
-            world.compile()
+        world = _free_rod(p, x, scene, mass_damping)
         t0 = time.perf_counter()
         stable, note = True, ""
         first_contact, deepest_late, deepest, rest_at = None, 0.0, 0.0, None
@@ -497,7 +478,7 @@ def extreme(p: CaseParams) -> list[dict]:
             elif name == "impact":
                 x = shapes.straight(q.length, q.n_edges, start=(-0.5 * q.length, 0.0, 0.3),
                                     direction=(1.0, 0.0, 0.3))
-                world = _free_rod(q, x, floor=True)
+                world = _free_rod(q, x, "floor")
                 if isinstance(world, native.CableRod):
                     world.data.qvel[:3] = (0.0, 0.0, -20.0)  # the root's free joint carries the cable
                 else:
@@ -517,12 +498,12 @@ def extreme(p: CaseParams) -> list[dict]:
                 x = np.stack([np.where(s < q.length / 2, s, q.length - s), np.zeros_like(s),
                               np.where(s < q.length / 2, 0.0, 2 * bend)], axis=1) + (0.0, 0.0, 0.5)
                 x[k] += (0.0, 0.0, bend)
-                world = _free_rod(q, x, floor=False)
+                world = _free_rod(q, x, None)
                 world.step(int(round(1.0 / q.dt)))
             elif name == "edge_ratio":
                 x = shapes.straight(q.length, q.n_edges, start=(0.0, 0.0, 1.0))
                 x[2] = x[1] + (x[2] - x[1]) * 1e-3
-                world = _clamped_rod(q, x)
+                world = _clamped_rod(q, x, q.gravity, 0.0)
                 world.step(int(round(1.0 / q.dt)))
             else:  # ring_20_turns
                 x = shapes.circle(q.length / (2 * math.pi), q.n_edges, center=(0.0, 0.0, 0.5))
@@ -547,26 +528,36 @@ def extreme(p: CaseParams) -> list[dict]:
     return out
 
 
-def _free_rod(p: CaseParams, x: np.ndarray, floor: bool):
+#: The drop scenes: derods loads the MJCF file, the native backends get the same geoms inline.
+_SCENES = {
+    "floor": ("floor.xml", '<geom type="plane" size="3 3 0.1"/>'),
+    "box_edge": ("box.xml", '<geom type="plane" size="3 3 0.1"/>'
+                            '<geom type="box" size="0.15 0.15 0.1" pos="0 0 0.1"/>'),
+}
+
+
+def _free_rod(p: CaseParams, x: np.ndarray, scene: str | None, mass_damping: float = 0.0):
+    """A naturally straight free rod at ``x`` [m] in ``scene`` ("floor", "box_edge" or None
+    for empty space), in the chosen backend (the cable brings its own damping)."""
+    path, geoms = _SCENES[scene] if scene else (None, "")
     if p.backend == "cable":
-        geoms = '<geom type="plane" size="3 3 0.1"/>' if floor else ""
         return native.cable_rod(p, clamped=False, start=x[0], direction=x[-1] - x[0], scene_body=geoms)
     if p.backend == "flex":
-        geoms = '<geom type="plane" size="3 3 0.1"/>' if floor else ""
-        rod, _ = native.flex_rod(x, p, scene_body=geoms)
+        rod, _ = native.flex_rod(x, p, scene_body=geoms, mass_damping=mass_damping)
         return rod
-    world = World(MJCF_DIR / "floor.xml" if floor else None, dt=p.dt, gravity=(0.0, 0.0, -p.gravity),
-                  mode=p.mode)
+    world = World(MJCF_DIR / path if path else None, dt=p.dt, gravity=(0.0, 0.0, -p.gravity),
+                  mode=p.mode, mass_damping=mass_damping)
     world.add_rod(Rod(x, p.material, natural_curvature=False), "rod")
     world.compile()
     return world
 
 
-def _clamped_rod(p: CaseParams, x: np.ndarray):
+def _clamped_rod(p: CaseParams, x: np.ndarray, gravity: float, damping: float):
+    """A rod at ``x`` [m] whose first edge is clamped, in derods or the native flexcomp."""
     if p.backend == "flex":
-        rod, _ = native.flex_rod(x, p, pinned=(0, 1))
+        rod, _ = native.flex_rod(x, p, pinned=(0, 1), gravity=(0.0, 0.0, -gravity), mass_damping=damping)
         return rod
-    world = World(dt=p.dt, gravity=(0.0, 0.0, -p.gravity), mode=p.mode)
+    world = World(dt=p.dt, gravity=(0.0, 0.0, -gravity), mode=p.mode, mass_damping=damping)
     world.add_rod(Rod(x, p.material), "rod", start="clamp")
     world.compile()
     return world

@@ -574,6 +574,14 @@ class World:
         rank1 = None if tw is None or tw.c == 0 else (pick(tw.g), float(tw.c))
         return band, rank1, pick(terms.grad_x)
 
+    def _unconstrained(self, system: ImplicitSystem, grad: np.ndarray, v: np.ndarray):
+        """The implicit step without contact: (end-of-step acceleration a0 [m/s^2], the
+        non-elastic force on the rod dofs [N]: gravity plus the user's xfrc_applied)."""
+        d = self._data
+        user = d.xfrc_applied[self._free_bodies, :3].ravel()
+        other = (self._mass.reshape(-1, 3) * self._model.opt.gravity).ravel() + user
+        return system.solve(system.rhs(other - grad, v)), other
+
     def _projection_step(self, system: ImplicitSystem, grad: np.ndarray, v: np.ndarray) -> None:
         """Implicit bending/twist step, then fast projection onto the rest edge lengths."""
         from .projection import project
@@ -581,9 +589,7 @@ class World:
         m, d = self._model, self._data
         h = m.opt.timestep
         dofs, mass = self._dofs, self._mass
-        user = d.xfrc_applied[self._free_bodies, :3].ravel()
-        other = (mass.reshape(-1, 3) * m.opt.gravity).ravel() + user
-        a0 = system.solve(system.rhs(other - grad, v))
+        a0, other = self._unconstrained(system, grad, v)
         accel = np.empty_like(a0)
         for i, slot in enumerate(self._slots):
             lo, hi = self._offsets[i], self._offsets[i + 1]
@@ -603,9 +609,7 @@ class World:
         the rest of the scene), contacts re-solved in the implicit metric, integration."""
         m, d = self._model, self._data
         dofs, mass = self._dofs, self._mass
-        user = d.xfrc_applied[self._free_bodies, :3].ravel()
-        other = (mass.reshape(-1, 3) * m.opt.gravity).ravel() + user
-        a0 = system.solve(system.rhs(other - grad, v))
+        a0, other = self._unconstrained(system, grad, v)
         # With this force MuJoCo's unconstrained acceleration of the rod dofs is a0, so
         # its own constraint solve (for bodies the rods touch) sees the implicit motion.
         d.qfrc_applied[dofs] = mass * a0 - other
