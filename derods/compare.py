@@ -101,7 +101,7 @@ FULL_PLAN = [
     (["cantilever", "circle"], ["der", "flex"], [10, 20, 50, 100, 200], [1e-2], {}),
     (["frequency"], ["der", "flex"], [10, 20, 50, 100], [1e-3], {}),
     (["drop"], ["der", "flex"], [20, 50], [2e-3, 1e-2], {"young": 1e7}),
-    (["michell"], ["der"], [20, 50], [1e-2], {"young": 1e7, "radius": 0.005, "shear": 5e6}),
+    (["michell"], ["der", "flex"], [20, 50], [1e-3, 1e-2], {"young": 1e7, "radius": 0.005, "shear": 5e6}),
     (["extreme"], ["der", "flex"], [50], [2e-3], {}),
 ]
 STABILITY_E = [1e5, 1e7, 1e9, 1e11]

@@ -35,6 +35,7 @@ import math
 import mujoco
 import numpy as np
 
+from . import frames, shapes
 from .world import MAX_SPEED, DivergenceError
 
 
@@ -44,9 +45,18 @@ def has_flex_elasticity() -> bool:
     return (major, minor) >= (3, 17)
 
 
+def has_flex_twist() -> bool:
+    """True if the installed MuJoCo's 1D flex has per-edge twist joints (4.0 and later)."""
+    return int(mujoco.__version__.split(".")[0]) >= 4
+
+
 def has_cable() -> bool:
     """True if the installed MuJoCo still ships the cable plugin (3.x)."""
     return int(mujoco.__version__.split(".")[0]) < 4
+
+
+def _compiled(xml: str | mujoco.MjModel) -> mujoco.MjModel:
+    return mujoco.MjModel.from_xml_string(xml) if isinstance(xml, str) else xml
 
 
 def poisson_for(young: float, shear: float) -> tuple[float, bool]:
@@ -84,8 +94,8 @@ class NativeRod:
     """One native flexcomp rod in its own MuJoCo model, with the World methods the
     benchmark cases use (step, positions, velocities, set_positions, time)."""
 
-    def __init__(self, xml: str, mass_damping: float = 0.0):
-        self.model = mujoco.MjModel.from_xml_string(xml)
+    def __init__(self, xml: str | mujoco.MjModel, mass_damping: float = 0.0):
+        self.model = _compiled(xml)
         self.data = mujoco.MjData(self.model)
         m = self.model
         adr, num = m.flex_vertadr[0], m.flex_vertnum[0]
@@ -162,23 +172,22 @@ def flex_rod(points: np.ndarray, p, pinned=(), gravity=None, closed: bool = Fals
     return NativeRod(xml, mass_damping), notes
 
 
-def cable_xml(length: float, n_edges: int, radius: float, density: float, young: float, shear: float,
-              start=(0.0, 0.0, 1.0), direction=(1.0, 0.0, 0.0), clamped: bool = True, dt: float = 1e-2,
-              gravity=(0.0, 0.0, -9.81), joint_damping: float = 0.0, scene_body: str = "") -> str:
+def cable_xml(vertices: np.ndarray, radius: float, density: float, young: float, shear: float,
+              clamped: bool = True, dt: float = 1e-2, gravity=(0.0, 0.0, -9.81), joint_damping: float = 0.0,
+              scene_body: str = "") -> str:
     """MJCF of a MuJoCo 3.x cable (``<composite type="cable">`` with the elasticity plugin).
 
+    vertices: (n + 1, 3) [m], equally spaced; one segment body per edge.
     ``geom mass = rho A h`` per segment (the default density would add the capsules'
     end caps: 3.7x too heavy at n = 200); ``initial="none"`` welds the first segment
     (the clamp), ``"free"`` gives it a free joint; joint damping [N m s] on the ball
-    joints, implicit in MuJoCo's integrators.
+    joints, implicit in MuJoCo's integrators. ``flat="true"``: the rod is naturally
+    straight whatever shape it starts in (as every benchmark rod is).
     """
-    h = length / n_edges
+    vertices = np.asarray(vertices, dtype=float)
+    h = float(np.linalg.norm(vertices[1] - vertices[0]))
     seg_mass = density * math.pi * radius**2 * h
-    d = np.asarray(direction, float) / np.linalg.norm(direction)
-    # curve "s" lays the cable along +x; "s s s" scaled per axis lays it along ``direction``.
-    along_x = np.allclose(d, (1.0, 0.0, 0.0))
-    curve = "s" if along_x else "s s s"
-    size = f"{length}" if along_x else " ".join(f"{length * c:.9g}" for c in d)
+    pts = " ".join(f"{v:.12g}" for v in vertices.ravel())
     g = " ".join(f"{v:g}" for v in gravity)
     return f"""<mujoco>
   <extension><plugin plugin="mujoco.elasticity.cable"/></extension>
@@ -186,12 +195,12 @@ def cable_xml(length: float, n_edges: int, radius: float, density: float, young:
   <option timestep="{dt}" integrator="implicitfast" gravity="{g}"/>
   <worldbody>
     {scene_body}
-      <composite prefix="c" type="cable" curve="{curve}" count="{n_edges + 1} 1 1" size="{size}"
-                 offset="{start[0]} {start[1]} {start[2]}" initial="{'none' if clamped else 'free'}">
+      <composite prefix="c" type="cable" vertex="{pts}" initial="{'none' if clamped else 'free'}">
         <plugin plugin="mujoco.elasticity.cable">
           <config key="twist" value="{shear}"/>
           <config key="bend" value="{young}"/>
           <config key="vmax" value="0"/>
+          <config key="flat" value="true"/>
         </plugin>
         <joint kind="main" damping="{joint_damping}"/>
         <geom type="capsule" size="{radius}" mass="{seg_mass}" rgba="0.85 0.55 0.2 1" condim="3"/>
@@ -207,8 +216,8 @@ class CableRod(NativeRod):
     linear velocities of those points.
     """
 
-    def __init__(self, xml: str):
-        self.model = mujoco.MjModel.from_xml_string(xml)
+    def __init__(self, xml: str | mujoco.MjModel):
+        self.model = _compiled(xml)
         self.data = mujoco.MjData(self.model)
         m = self.model
         names = [m.body(i).name for i in range(m.nbody)]
@@ -237,20 +246,39 @@ class CableRod(NativeRod):
     def set_positions(self, name, x: np.ndarray) -> None:
         """Bend a clamped cable into the shape of ``x`` (its n + 1 vertices [m]), at rest.
 
-        A cable's shape lives in its ball joints: each segment is turned, relative to
-        the one before, by the angle between their directions in ``x``. Only shapes in
-        the xz plane (the benchmark's) are supported.
+        A cable's shape lives in its ball joints: the segments take the directions of
+        x's edges, their frames carried along by parallel transport from the clamped
+        first segment (no twist added). x's first edge must keep the clamp's direction.
         """
+        self._set_segments(x, np.zeros(len(self.body_ids)))
+
+    def _set_segments(self, x: np.ndarray, theta: np.ndarray) -> None:
+        """Set the ball joints so that segment k runs along edge k of ``x`` (n + 1, 3) [m],
+        its frame the Bishop frame turned by ``theta[k]`` [rad] about the segment."""
         x = np.asarray(x, dtype=float)
-        if x.shape != (len(self.body_ids) + 1, 3) or np.max(np.abs(x[:, 1] - x[0, 1])) > 1e-12:
-            raise ValueError("set_positions on a cable takes n + 1 vertices in the xz plane")
-        e = np.diff(x, axis=0)
-        pitch = np.arctan2(e[:, 2], e[:, 0])  # angle of each segment above +x
+        if x.shape != (len(self.body_ids) + 1, 3):
+            raise ValueError(f"x must have shape ({len(self.body_ids) + 1}, 3) (one row per vertex), "
+                             f"got {x.shape}")
         m, d = self.model, self.data
+        first = np.empty(9)
+        mujoco.mju_quat2Mat(first, d.xquat[self.body_ids[0]])
+        first = first.reshape(3, 3)  # columns: the segment's x (along it), y, z axes
+        t = frames.tangents(x, closed=False)
+        if not np.allclose(t[0], first[:, 0], atol=1e-6):
+            raise ValueError("x's first edge must keep the direction of the clamped first segment")
+        u = frames.bishop_frames(x, closed=False, u0=first[:, 1])
+        m1, m2 = frames.material_frames(u, t, np.asarray(theta, dtype=float))
+        quats = np.empty((len(t), 4))
+        for k in range(len(t)):
+            mujoco.mju_mat2Quat(quats[k], np.stack([t[k], m1[k], m2[k]], axis=1).ravel())
+        inv_prev, rel, body_inv = np.empty(4), np.empty(4), np.empty(4)
         for k, b in enumerate(self.body_ids[1:], start=1):
-            turn = pitch[k] - pitch[k - 1]  # about -y: +x turns towards +z
+            # joint = body_quat^-1 (q_{k-1}^-1 q_k): the turn from segment k - 1 to k.
+            mujoco.mju_negQuat(inv_prev, quats[k - 1])
+            mujoco.mju_mulQuat(rel, inv_prev, quats[k])
+            mujoco.mju_negQuat(body_inv, m.body_quat[b])
             adr = m.jnt_qposadr[m.body_jntadr[b]]
-            d.qpos[adr:adr + 4] = [math.cos(turn / 2), 0.0, -math.sin(turn / 2), 0.0]
+            mujoco.mju_mulQuat(d.qpos[adr:adr + 4], body_inv, rel)
         d.qvel[:] = 0.0
         mujoco.mj_forward(m, d)
 
@@ -267,6 +295,158 @@ def cable_rod(p, clamped: bool = True, gravity=None, start=(0.0, 0.0, 1.0), dire
     grav = (0.0, 0.0, -p.gravity) if gravity is None else gravity
     h = p.length / p.n_edges
     damping = joint_damping_time * mat.young * mat.second_moments[0] / h
-    xml = cable_xml(p.length, p.n_edges, mat.radius, mat.density, mat.young, mat.shear_modulus, start,
-                    direction, clamped, p.dt, grav, damping, scene_body)
+    x = shapes.straight(p.length, p.n_edges, start, direction)
+    xml = cable_xml(x, mat.radius, mat.density, mat.young, mat.shear_modulus, clamped, p.dt, grav, damping,
+                    scene_body)
     return CableRod(xml)
+
+
+# --- Twisted rings (the ``michell`` case) -------------------------------------------------------
+#
+# Neither native rod closes a naturally straight ring with an imposed twist by itself: both take
+# their rest shape from the shape they are built in, a closed flex loop has no twist state (its
+# torsion is the dihedral angle of osculating planes) and the composite cable is open. Both rings
+# are therefore built as an open rod of n + 1 edges laid around the circle whose last edge lies on
+# its first: the first edge is clamped, the last is held on it by equality constraints with its
+# material frame turned by the total twist Theta. Every vertex of the ring then carries its bending
+# and twist. The clamp removes only the ring's rigid motions, so Michell's threshold is unchanged:
+# a rigid motion adds no energy, and any buckling mode of the free ring, less the rigid motion that
+# brings its clamped edge back, is a mode of the clamped ring with the same energy.
+
+#: Closing constraints: time constant 2 dt (the stiffest MuJoCo allows without disabling its
+#: reference-safety clamp) and impedance 0.9999 (the default 0.9 - 0.95 lets a cable ring open by
+#: 2.5 cm at n = 30, E = 1e8 Pa, dt = 1e-3 s).
+CLOSURE_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
+
+
+def _stiff(eq, dt: float) -> None:
+    eq.solref = [2.0 * dt, 1.0]
+    eq.solimp = list(CLOSURE_SOLIMP)
+
+
+def _ring_vertices(p) -> np.ndarray:
+    """The ring's rest vertices [m], (n, 3): circumference L in the xy plane (:func:`shapes.circle`)."""
+    return shapes.circle(p.length / (2.0 * math.pi), p.n_edges)
+
+
+class FlexRing(NativeRod):
+    """A naturally straight flexcomp ring with total twist (see the comment above).
+
+    Its n + 2 points lie on a straight line in ``qpos0`` (so MuJoCo keeps no rest curvature)
+    and are set around the circle through ``qpos``; points 0, 1 are pinned, points n, n + 1
+    held on them by joint equalities, and the last edge's twist joint by a joint equality
+    at Theta. ``positions`` and ``set_positions`` see the n ring vertices only.
+    """
+
+    def __init__(self, model: mujoco.MjModel, rest: np.ndarray, total_twist: float):
+        super().__init__(model)
+        self.rest = np.asarray(rest, dtype=float)
+        self.total_twist = float(total_twist)
+        n = len(self.rest)
+        # Edge k's twist angle: rod_twist_k, the last edge's rod_twist; the clamped edge 0 has none.
+        names = [f"rod_twist_{k}" for k in range(1, n)] + ["rod_twist"]
+        self._twist_qpos = np.array([model.joint(nm).qposadr[0] for nm in names])
+        self.set_positions(None, self.rest)
+
+    def positions(self, name=None) -> np.ndarray:
+        return super().positions()[:len(self.rest)]
+
+    def velocities(self, name=None) -> np.ndarray:
+        return super().velocities()[:len(self.rest)]
+
+    def set_positions(self, name, x: np.ndarray) -> None:
+        """Place the ring at ``x`` (n, 3) [m] at rest, twisted evenly; x's first two rows
+        (the clamped edge) are ignored."""
+        n = len(self.rest)
+        x = np.asarray(x, dtype=float)
+        if x.shape != (n, 3):
+            raise ValueError(f"x must have shape ({n}, 3), one row per ring vertex, got {x.shape}")
+        super().set_positions(name, np.concatenate([self.rest[:2], x[2:], self.rest[:2]]))
+        self.data.qpos[self._twist_qpos] = self.total_twist * np.arange(1, n + 1) / n
+        mujoco.mj_forward(self.model, self.data)
+
+
+def flex_ring(p, total_twist: float) -> FlexRing:
+    """A naturally straight flexcomp ring of circumference ``p.length`` with total twist
+    ``total_twist`` [rad], without gravity, for the benchmark parameters ``p``."""
+    if not has_flex_twist():
+        raise ValueError(f"a twisted flex ring needs MuJoCo >= 4.0 (per-edge twist joints); this is "
+                         f"{mujoco.__version__}: pip install -U mujoco")
+    mat = p.material
+    n = p.n_edges
+    rest = _ring_vertices(p)
+    h = float(np.linalg.norm(rest[1] - rest[0]))
+    line = rest[0] + np.arange(n + 2)[:, None] * (rest[1] - rest[0])  # straight, edge length h
+    nu, _ = poisson_for(mat.young, mat.shear_modulus)
+    mass = mat.density * math.pi * mat.radius**2 * h * (n + 2)  # rho A h per point
+    spec = mujoco.MjSpec.from_string(flex_xml(line, mat.radius, mass, mat.young, nu, pinned=(0, 1),
+                                              dt=p.dt, gravity=(0.0, 0.0, 0.0)))
+    for i, target in ((n, rest[0]), (n + 1, rest[1])):
+        for axis, joint in enumerate(spec.body(f"rod_{i}").joints):  # three slides along x, y, z
+            joint.name = f"close_{i}_{axis}"
+            eq = spec.add_equality(name=joint.name, type=mujoco.mjtEq.mjEQ_JOINT, name1=joint.name)
+            eq.data[0] = target[axis] - line[i, axis]
+            _stiff(eq, p.dt)
+    eq = spec.add_equality(name="ring_twist", type=mujoco.mjtEq.mjEQ_JOINT, name1="rod_twist")
+    eq.data[0] = total_twist
+    _stiff(eq, p.dt)
+    return FlexRing(spec.compile(), rest, total_twist)
+
+
+class CableRing(CableRod):
+    """A naturally straight (``flat``) cable ring with total twist (see the comment above).
+
+    n + 1 segments laid around the circle; the first is clamped, the last lies on it, welded
+    to a world frame turned by Theta about the tangent. ``positions`` and ``set_positions``
+    see the n ring vertices (the first n segments' origins) only.
+    """
+
+    def __init__(self, model: mujoco.MjModel, rest: np.ndarray, total_twist: float):
+        super().__init__(model)
+        self.rest = np.asarray(rest, dtype=float)
+        self.total_twist = float(total_twist)
+        self.set_positions(None, self.rest)
+
+    def positions(self, name=None) -> np.ndarray:
+        return self.data.xpos[self.body_ids[:len(self.rest)]].copy()
+
+    def velocities(self, name=None) -> np.ndarray:
+        return super().velocities()[:len(self.rest)]
+
+    def set_positions(self, name, x: np.ndarray) -> None:
+        """Place the ring at ``x`` (n, 3) [m] at rest, twisted evenly; x's first two rows
+        (the clamped segment) are ignored."""
+        n = len(self.rest)
+        x = np.asarray(x, dtype=float)
+        if x.shape != (n, 3):
+            raise ValueError(f"x must have shape ({n}, 3), one row per ring vertex, got {x.shape}")
+        full = np.concatenate([self.rest[:2], x[2:], self.rest[:2]])
+        self._set_segments(full, self.total_twist * np.arange(n + 1) / n)
+
+
+def cable_ring(p, total_twist: float, joint_damping_time: float = 0.01) -> CableRing:
+    """A naturally straight cable ring of circumference ``p.length`` with total twist
+    ``total_twist`` [rad], without gravity (joint damping as :func:`cable_rod`)."""
+    if not has_cable():
+        raise ValueError(f"the cable plugin was removed in MuJoCo 4.0 (this is {mujoco.__version__}); "
+                         "run in the MuJoCo 3.17 environment: make venv317")
+    mat = p.material
+    rest = _ring_vertices(p)
+    h = float(np.linalg.norm(rest[1] - rest[0]))
+    damping = joint_damping_time * mat.young * mat.second_moments[0] / h
+    xml = cable_xml(np.concatenate([rest, rest[:2]]), mat.radius, mat.density, mat.young, mat.shear_modulus,
+                    clamped=True, dt=p.dt, gravity=(0.0, 0.0, 0.0), joint_damping=damping)
+    spec = mujoco.MjSpec.from_string(xml)
+    for geom in spec.geoms:  # the last segment overlaps the first: no contacts in the ring
+        geom.contype = geom.conaffinity = 0
+    first = spec.body("cB_first")  # a child of the world: its quat is its orientation
+    target = np.empty(4)
+    turn = np.empty(4)
+    mujoco.mju_axisAngle2Quat(turn, np.array([1.0, 0.0, 0.0]), total_twist)  # about the segment
+    mujoco.mju_mulQuat(target, np.asarray(first.quat, dtype=float), turn)
+    spec.body("cB_last").add_site(name="ring_end")
+    spec.worldbody.add_site(name="ring_start", pos=first.pos, quat=target)
+    eq = spec.add_equality(name="ring_close", type=mujoco.mjtEq.mjEQ_WELD, name1="ring_end", name2="ring_start",
+                           objtype=mujoco.mjtObj.mjOBJ_SITE)
+    _stiff(eq, p.dt)
+    return CableRing(spec.compile(), rest, total_twist)

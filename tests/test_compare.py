@@ -67,7 +67,7 @@ def test_pareto_front():
 def test_unknown_backend_case_is_an_error(capsys):
     from derods.__main__ import main
 
-    assert main(["bench", "michell", "--backend", "flex"]) == 2
+    assert main(["bench", "twist", "--backend", "flex"]) == 2
     assert "not available for backend 'flex'" in capsys.readouterr().err
     assert main(["bench", "cantilever", "--backend", "cable"]) == 2
     assert "cable" in capsys.readouterr().err
