@@ -1,4 +1,4 @@
-"""Compiled (numba) kernel for the per-step work of isotropic open rods.
+"""Compiled (numba) kernel for the per-step work of isotropic, naturally straight rods.
 
 One call does, for every rod of a batch, what the numpy path of
 :meth:`derods.rod.Rod.step_terms` does with several dozen array operations:
@@ -6,8 +6,12 @@ transport the reference frames in time, solve the quasistatic twist, and
 evaluate the gradient and the positive semi-definite banded Hessian of
 stretch + isotropic bending + the reduced twist. At a few hundred vertices a
 numpy call costs more in overhead than in arithmetic; this kernel removes
-that overhead. tests/test_kernels.py checks it against the numpy path, which
-in turn is checked against finite differences.
+that overhead. Open rods and rings share one loop: edge j joins vertices j
+and j + 1 (mod n on a ring); joint k joins edges k, k + 1 of an open rod and
+k - 1, k of a ring (:func:`derods.geometry.joint_pairs`). The band is written
+with the vertices in a given order (identity for open rods,
+:func:`derods.stencil.ring_order` for rings). tests/test_kernels.py checks it
+against the numpy path, which in turn is checked against finite differences.
 
 Formulas and conventions are those of :mod:`derods.energy`,
 :mod:`derods.frames` and :mod:`derods.twist`; the lower banded layout is that
@@ -25,27 +29,38 @@ from .geometry import CHI_MIN
 
 
 @nb.njit(cache=True, inline="always")
-def _add(ab, row, col, v):
-    # Lower banded storage: H[row, col] (row >= col) lives at ab[row - col, col].
-    if row >= col:
-        ab[row - col, col] += v
+def _add(ab, pos, vi, vj, r, c, v):
+    """Add v to H[3 vi + r, 3 vj + c] of a symmetric matrix kept as its lower band, with
+    vertex vi at place pos[vi] of the solve order. Of a diagonal block (vi == vj) only the
+    lower triangle is added; an off-diagonal block lands in the lower half, transposed if
+    its vertices come in the other order (each such block is added for one order only)."""
+    row = 3 * pos[vi] + r
+    col = 3 * pos[vj] + c
+    if row < col:
+        if vi == vj:
+            return
+        row, col = col, row
+    if row - col >= ab.shape[0]:
+        raise ValueError("a Hessian entry falls outside the band; check the vertex order")
+    ab[row - col, col] += v
 
 
 @nb.njit(cache=True)
-def _step_one(x, u_prev, t_prev, rest_len, vlen, ks, alpha, beta, mbar, clamped, anchor_last,
-              theta_first, theta_last, u, t, theta, grad, ab, g_tw, ref, le, ja, jb, hab):
+def _step_one(x, u_prev, t_prev, rest_len, vlen, ks, alpha, beta, mbar, closed, pos, clamped, anchor_last,
+              theta_first, theta_last, total_twist, u, t, theta, grad, ab, g_tw, ref, le, ja, jb, hab):
     nv = x.shape[0]
-    ne = nv - 1
-    nj = nv - 2
+    ne = nv if closed else nv - 1
+    nj = nv if closed else nv - 2
     energy = 0.0
     grad[:] = 0.0
     ab[:] = 0.0
     g_tw[:] = 0.0
     # Edges: tangents, time-parallel transport of the reference frames, stretching.
     for j in range(ne):
-        e0 = x[j + 1, 0] - x[j, 0]
-        e1 = x[j + 1, 1] - x[j, 1]
-        e2 = x[j + 1, 2] - x[j, 2]
+        jn = (j + 1) % nv
+        e0 = x[jn, 0] - x[j, 0]
+        e1 = x[jn, 1] - x[j, 1]
+        e2 = x[jn, 2] - x[j, 2]
         lj = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
         le[j] = lj
         c0, c1, c2 = e0 / lj, e1 / lj, e2 / lj
@@ -69,20 +84,27 @@ def _step_one(x, u_prev, t_prev, rest_len, vlen, ks, alpha, beta, mbar, clamped,
         ten = ks * strain
         for a in range(3):
             grad[j, a] -= ten * t[j, a]
-            grad[j + 1, a] += ten * t[j, a]
+            grad[jn, a] += ten * t[j, a]
         kt = ks / rest_len[j]
         kg = max(ten, 0.0) / lj
         for r in range(3):
             for c in range(3):
                 h = (kt - kg) * t[j, r] * t[j, c] + (kg if r == c else 0.0)
-                _add(ab, 3 * j + r, 3 * j + c, h)
-                _add(ab, 3 * j + 3 + r, 3 * j + 3 + c, h)
-                _add(ab, 3 * j + 3 + r, 3 * j + c, -h)
+                _add(ab, pos, j, j, r, c, h)
+                _add(ab, pos, jn, jn, r, c, h)
+                _add(ab, pos, jn, j, r, c, -h)
     # Joints: isotropic bending and the reference twist with its gradient.
     for k in range(nj):
-        a0, a1, a2 = t[k, 0], t[k, 1], t[k, 2]
-        b0, b1, b2 = t[k + 1, 0], t[k + 1, 1], t[k + 1, 2]
-        la, lb = le[k], le[k + 1]
+        # Edges ea, eb meet at vertex vm between vertices va and vn.
+        if closed:
+            ea, eb = (k - 1) % ne, k
+            va, vm, vn = (k - 1) % nv, k, (k + 1) % nv
+        else:
+            ea, eb = k, k + 1
+            va, vm, vn = k, k + 1, k + 2
+        a0, a1, a2 = t[ea, 0], t[ea, 1], t[ea, 2]
+        b0, b1, b2 = t[eb, 0], t[eb, 1], t[eb, 2]
+        la, lb = le[ea], le[eb]
         s0, s1, s2 = a0 + b0, a1 + b1, a2 + b2
         chi = max(0.5 * (s0 * s0 + s1 * s1 + s2 * s2), CHI_MIN)
         kb0 = 2.0 * (a1 * b2 - a2 * b1) / chi
@@ -115,9 +137,9 @@ def _step_one(x, u_prev, t_prev, rest_len, vlen, ks, alpha, beta, mbar, clamped,
         for c in range(3):
             ga = two_c * (ja[0, c] * kb0 + ja[1, c] * kb1 + ja[2, c] * kb2)
             gb = two_c * (jb[0, c] * kb0 + jb[1, c] * kb1 + jb[2, c] * kb2)
-            grad[k, c] -= ga
-            grad[k + 1, c] += ga - gb
-            grad[k + 2, c] += gb
+            grad[va, c] -= ga
+            grad[vm, c] += ga - gb
+            grad[vn, c] += gb
         # Gauss-Newton Hessian 2c J^T J over (a, b), mapped to the three vertices.
         for r in range(6):
             for c in range(6):
@@ -127,43 +149,38 @@ def _step_one(x, u_prev, t_prev, rest_len, vlen, ks, alpha, beta, mbar, clamped,
                     jc = ja[i, c] if c < 3 else jb[i, c - 3]
                     acc += jr * jc
                 hab[r, c] = two_c * acc
-        p3, m3, n3 = 3 * k, 3 * k + 3, 3 * k + 6
         for r in range(3):
             for c in range(3):
                 haa, hab_, hba, hbb = hab[r, c], hab[r, c + 3], hab[r + 3, c], hab[r + 3, c + 3]
-                _add(ab, p3 + r, p3 + c, haa)
-                _add(ab, m3 + r, m3 + c, haa - hab_ - hba + hbb)
-                _add(ab, n3 + r, n3 + c, hbb)
-                _add(ab, m3 + r, p3 + c, hba - haa)
-                _add(ab, n3 + r, m3 + c, hba - hbb)
-                _add(ab, n3 + r, p3 + c, -hba)
+                _add(ab, pos, va, va, r, c, haa)
+                _add(ab, pos, vm, vm, r, c, haa - hab_ - hba + hbb)
+                _add(ab, pos, vn, vn, r, c, hbb)
+                _add(ab, pos, vm, va, r, c, hba - haa)
+                _add(ab, pos, vn, vm, r, c, hba - hbb)
+                _add(ab, pos, vn, va, r, c, -hba)
         # Reference twist: angle from the transport of u^k (ta -> tb) to u^{k+1} about tb.
-        w0, w1, w2 = u[k, 0], u[k, 1], u[k, 2]
+        w0, w1, w2 = u[ea, 0], u[ea, 1], u[ea, 2]
         q0, q1, q2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
         cc = chi - 1.0
         kw = (q0 * w0 + q1 * w1 + q2 * w2) / chi
         v0 = cc * w0 + (q1 * w2 - q2 * w1) + q0 * kw
         v1 = cc * w1 + (q2 * w0 - q0 * w2) + q1 * kw
         v2 = cc * w2 + (q0 * w1 - q1 * w0) + q2 * kw
-        z0, z1, z2 = u[k + 1, 0], u[k + 1, 1], u[k + 1, 2]
+        z0, z1, z2 = u[eb, 0], u[eb, 1], u[eb, 2]
         sin_ = (v1 * z2 - v2 * z1) * b0 + (v2 * z0 - v0 * z2) * b1 + (v0 * z1 - v1 * z0) * b2
         cos_ = v0 * z0 + v1 * z1 + v2 * z2
         ref[k] = math.atan2(sin_, cos_)
         ia, ib = 0.5 / la, 0.5 / lb
-        g_tw[k, 0] -= kb0 * ia
-        g_tw[k, 1] -= kb1 * ia
-        g_tw[k, 2] -= kb2 * ia
-        g_tw[k + 1, 0] += kb0 * (ia - ib)
-        g_tw[k + 1, 1] += kb1 * (ia - ib)
-        g_tw[k + 1, 2] += kb2 * (ia - ib)
-        g_tw[k + 2, 0] += kb0 * ib
-        g_tw[k + 2, 1] += kb1 * ib
-        g_tw[k + 2, 2] += kb2 * ib
-    # Quasistatic twist (closed form, see derods.twist.solve_isotropic).
+        for c in range(3):
+            g_tw[va, c] -= kbv[c] * ia
+            g_tw[vm, c] += kbv[c] * (ia - ib)
+            g_tw[vn, c] += kbv[c] * ib
+    # Quasistatic twist (closed form, see derods.twist.solve_isotropic): theta of edge eb
+    # follows theta of edge ea by d_k + mbar_k - ref_k across joint k (not across a ring's seam).
     lam = 0.0
     coef = 0.0
     if clamped:
-        excess = theta_last - theta_first
+        excess = total_twist if closed else theta_last - theta_first
         compliance = 0.0
         for k in range(nj):
             excess += ref[k] - mbar[k]
@@ -171,9 +188,10 @@ def _step_one(x, u_prev, t_prev, rest_len, vlen, ks, alpha, beta, mbar, clamped,
         lam = 2.0 * excess / compliance
         coef = 2.0 / compliance
         energy += 0.25 * lam * lam * compliance
-        theta[0] = theta_first
-        for k in range(nj):
-            theta[k + 1] = theta[k] + 0.5 * lam * vlen[k] / beta + mbar[k] - ref[k]
+        theta[0] = 0.0 if closed else theta_first
+        for k in range(1 if closed else 0, nj):
+            eb = k if closed else k + 1
+            theta[eb] = theta[eb - 1] + 0.5 * lam * vlen[k] / beta + mbar[k] - ref[k]
         for i in range(nv):
             for a in range(3):
                 grad[i, a] += lam * g_tw[i, a]
@@ -183,25 +201,30 @@ def _step_one(x, u_prev, t_prev, rest_len, vlen, ks, alpha, beta, mbar, clamped,
             theta[k] = theta[k + 1] - (mbar[k] - ref[k])
     else:
         theta[0] = theta_first
-        for k in range(nj):
-            theta[k + 1] = theta[k] + mbar[k] - ref[k]
+        for k in range(1 if closed else 0, nj):
+            eb = k if closed else k + 1
+            theta[eb] = theta[eb - 1] + mbar[k] - ref[k]
     return energy, lam, coef
 
 
 @nb.njit(cache=True)
-def step_batch(x, u_prev, t_prev, rest_len, vlen, ks, alpha, beta, mbar, clamped, anchor_last,
-               theta_first, theta_last, u, t, theta, grad, ab, g_tw, energy, lam, coef):
-    """Run :func:`_step_one` over rods stacked on axis 0 (outputs filled in place)."""
+def step_batch(x, u_prev, t_prev, rest_len, vlen, ks, alpha, beta, mbar, closed, pos, clamped, anchor_last,
+               theta_first, theta_last, total_twist, u, t, theta, grad, ab, g_tw, energy, lam, coef):
+    """Run :func:`_step_one` over rods stacked on axis 0 (outputs filled in place).
+
+    closed: rings. clamped: both ends' material frames held (for a ring: its total twist
+    ``total_twist`` [rad] imposed). pos: place of each vertex in the band's order,
+    shape (n_vertices,)."""
     n_rods, nv = x.shape[0], x.shape[1]
-    ref = np.empty(nv - 2)
-    le = np.empty(nv - 1)
+    ref = np.empty(nv)
+    le = np.empty(nv)
     ja = np.empty((3, 3))
     jb = np.empty((3, 3))
     hab = np.empty((6, 6))
     for i in range(n_rods):
         e, lm, cf = _step_one(x[i], u_prev[i], t_prev[i], rest_len[i], vlen[i], ks, alpha, beta,
-                              mbar[i], clamped, anchor_last, theta_first, theta_last,
-                              u[i], t[i], theta[i], grad[i], ab[i], g_tw[i], ref, le, ja, jb, hab)
+                              mbar[i], closed, pos, clamped, anchor_last, theta_first, theta_last,
+                              total_twist, u[i], t[i], theta[i], grad[i], ab[i], g_tw[i], ref, le, ja, jb, hab)
         energy[i] = e
         lam[i] = lm
         coef[i] = cf

@@ -613,9 +613,13 @@ def format_record(rec: dict) -> str:
     parts = [f"{rec['case']}"]
     if "scene" in rec:
         parts.append(f"{rec['scene']} tilt {rec['tilt']:g}")
+    if "variant" in rec:
+        parts.append(f"{rec['variant']}: {rec['outcome']}")
     parts.append(f"n={rec['n_edges']} dt={rec['dt']:g} E={rec['young']:.3g} {rec['mode']}")
     if not rec["stable"]:
         parts.append(f"UNSTABLE: {rec['note']}")
+    elif rec["measured"] is None:
+        parts.append(rec.get("note", ""))
     else:
         m, r = rec["measured"], rec["reference"]
         err = rec["rel_error"]

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from . import _checks, energy, frames, geometry, twist
+from . import _checks, energy, frames, geometry, stencil, twist
 from .energy import Configuration, Derivatives
 from .stencil import Hessian
 from .twist import TwistBoundary
@@ -134,7 +134,9 @@ class StepTerms:
     grad_x: dE/dx [N], shape (..., n_vertices, 3) (the elastic force is minus this).
     hessian_banded: positive semi-definite Hessian of stretch + bending in the lower
         banded form of :func:`scipy.linalg.solveh_banded`, shape (..., 9, 3 n_vertices);
-        None for a ring, whose Hessian is banded only in another vertex order.
+        for a ring, with its vertices in :func:`derods.stencil.ring_order` (where its
+        Hessian is banded), shape (..., RING_BANDWIDTH + 1, 3 n_vertices); None for
+        a batch of rings on the numpy path.
     twist: the reduced twist term (:class:`derods.twist.ReducedTwist`), whose
         Hessian c g g^T is a rank-one update of ``hessian_banded``; None without twist.
     hessian: the same PSD Hessian per stencil (:class:`derods.stencil.Hessian`), from
@@ -335,8 +337,8 @@ class Rod:
     @property
     def has_kernel(self) -> bool:
         """True if :meth:`step_terms` runs in the compiled kernel (isotropic, naturally
-        straight, open rods)."""
-        return not self.closed and "bend_material" not in self.active_terms
+        straight rods, open or closed)."""
+        return "bend_material" not in self.active_terms
 
     def step_terms(self, state: RodState, x: np.ndarray, use_kernel: bool | None = None,
                    boundary: TwistBoundary | None = None) -> StepTerms:
@@ -355,7 +357,7 @@ class Rod:
         if use_kernel is None:
             use_kernel = self.has_kernel
         if use_kernel and not self.has_kernel:
-            raise ValueError("the compiled kernel covers isotropic, naturally straight, open rods only")
+            raise ValueError("the compiled kernel covers isotropic, naturally straight rods only")
         if use_kernel:
             return self._step_terms_kernel(state, x, bd)
         if "bend_material" in self.active_terms:
@@ -373,8 +375,16 @@ class Rod:
             theta = red.theta
             grad = grad + red.grad_x
             e = e + red.energy
-        band = None if self.closed else d.hessian.xx_banded()
-        return StepTerms(RodState(x, u, t, theta), e, grad, band, red, d.hessian)
+        return StepTerms(RodState(x, u, t, theta), e, grad, self._band(d.hessian), red, d.hessian)
+
+    def _band(self, hessian) -> np.ndarray | None:
+        """The x-x Hessian's lower band: in vertex order for an open rod, in
+        :func:`derods.stencil.ring_order` for a ring (one ring, no batch)."""
+        if not self.closed:
+            return hessian.xx_banded()
+        if self.rest_x.ndim > 2:
+            return None
+        return hessian.xx_banded_ordered(stencil.ring_order(self.n_vertices), stencil.RING_BANDWIDTH)
 
     def _step_terms_material(self, state: RodState, x: np.ndarray, bd: TwistBoundary) -> StepTerms:
         """step_terms for anisotropic or naturally curved rods: Newton twist solve, then
@@ -386,8 +396,7 @@ class Rod:
         theta = self.solve_twist(RodState(x, u, t, state.theta), bd)
         cfg = Configuration(x, self.closed, u, theta)
         d = self._terms(cfg, 2, True, self.active_terms)
-        band = None if self.closed else d.hessian.xx_banded()
-        return StepTerms(RodState(x, u, t, theta), d.energy, d.grad_x, band, None, d.hessian,
+        return StepTerms(RodState(x, u, t, theta), d.energy, d.grad_x, self._band(d.hessian), None, d.hessian,
                          grad_theta=d.grad_theta)
 
     def _step_terms_kernel(self, state: RodState, x: np.ndarray, bd: TwistBoundary) -> StepTerms:
@@ -406,15 +415,23 @@ class Rod:
         n = xs.shape[0]
         u, t, theta = np.empty((n, ne, 3)), np.empty((n, ne, 3)), np.empty((n, ne))
         grad, g_tw = np.empty((n, nv, 3)), np.empty((n, nv, 3))
-        ab = np.empty((n, 9, 3 * nv))
+        if self.closed:
+            nj = nv
+            pos = np.empty(nv, dtype=np.int64)
+            pos[stencil.ring_order(nv)] = np.arange(nv)
+            bandwidth = stencil.RING_BANDWIDTH
+        else:
+            pos, bandwidth = np.arange(nv, dtype=np.int64), 8
+        ab = np.empty((n, bandwidth + 1, 3 * nv))
         energy, lam, coef = np.empty(n), np.empty(n), np.empty(n)
-        clamped = bd.kind == "clamped"
-        anchor_last = bd.kind == "free" and bd.theta_first is None and bd.theta_last is not None
+        clamped = bd.kind in ("clamped", "ring")  # both ends' frames held
+        anchor_last = (not self.closed and bd.kind == "free" and bd.theta_first is None
+                       and bd.theta_last is not None)
         _kernels.step_batch(
             xs, flat(state.u, ne, 3), flat(state.t, ne, 3), flat(self.rest_len, ne), flat(self.vlen, nj),
             float(self.ks), float(self.material.alpha), float(self.material.beta), flat(self.mbar, nj),
-            clamped, anchor_last, float(bd.theta_first or 0.0), float(bd.theta_last or 0.0),
-            u, t, theta, grad, ab, g_tw, energy, lam, coef)
+            self.closed, pos, clamped, anchor_last, float(bd.theta_first or 0.0), float(bd.theta_last or 0.0),
+            float(bd.total_twist), u, t, theta, grad, ab, g_tw, energy, lam, coef)
         shape = lambda a: a.reshape(batch + a.shape[1:])  # noqa: E731
         red = None
         if "twist" not in self.active_terms:

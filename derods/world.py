@@ -42,7 +42,7 @@ import numpy as np
 from . import frames
 from . import contact
 from .implicit import ImplicitSystem, restrict_band
-from .stencil import RING_BANDWIDTH, ring_order
+from .stencil import ring_order
 from .geometry import edges as _edges
 from .rod import Rod, RodState
 from .twist import TwistBoundary
@@ -565,7 +565,7 @@ class World:
         in solve order (the zig-zag order on a ring)."""
         tw = terms.twist
         if slot.rod.closed:
-            band = terms.hessian.xx_banded_ordered(slot.order, RING_BANDWIDTH)
+            band = terms.hessian_banded  # already in slot.order (stencil.ring_order)
             pick = lambda a: a.reshape(-1, 3)[slot.order].ravel()  # noqa: E731
         else:
             lo, hi = 3 * slot.free.start, 3 * slot.free.stop

@@ -41,3 +41,12 @@ def test_bench_bad_input_is_a_one_line_error(argv, match, capsys):
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1
     assert __import__("re").search(match, err)
+
+
+def test_format_record_of_a_case_without_a_measure():
+    """Extreme-case records carry an outcome, not a measure: printed, not a TypeError."""
+    rec = {"case": "extreme", "n_edges": 50, "dt": 2e-3, "young": 1e4, "mode": "implicit", "stable": True,
+           "measured": None, "reference": None, "rel_error": None, "us_per_step": 120.0,
+           "variant": "soft", "outcome": "stable", "note": ""}
+    line = bench.format_record(rec)
+    assert "soft: stable" in line and "120 us/step" in line
