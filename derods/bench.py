@@ -335,7 +335,9 @@ def michell(p: CaseParams, tol: float = 0.002) -> list[dict]:
     stable, note, steps, world, trials = True, "", 0, None, 0
     try:
         buckled_lo, world = ring_buckles(p, lo)
+        steps += world.n_steps
         buckled_hi, world = ring_buckles(p, hi)
+        steps += world.n_steps
         trials = 2
         if buckled_lo or not buckled_hi:
             raise RuntimeError(f"no threshold between {lo:.4g} and {hi:.4g} rad (buckled: {buckled_lo}, {buckled_hi})")
@@ -474,19 +476,23 @@ def extreme(p: CaseParams) -> list[dict]:
     soft: E = 1e4 Pa cantilever; steel wire: E = 2e11 Pa, r = 0.5 mm cantilever;
     impact: a free rod thrown at the floor at 20 m/s; hairpin: a rod folded back on
     itself (bend radius 2 r) released; edge ratio: a cantilever whose second edge is
-    1000 times shorter than the others; ring 20 turns (derods only): a ring twisted
-    20 full turns (far above Michell's threshold) with self-contact.
+    1000 times shorter than the others; ring 20 turns: a ring twisted 20 full turns
+    (far above Michell's threshold), which writhes; derods has self-contact on, the
+    native rings have none (see :func:`_twisted_ring`): "penetrated" if two
+    non-neighbouring parts of the rod come closer than r.
     """
     out = []
     if p.backend == "cable":
-        # A composite cable is built straight and uniform: no hairpin, no 1000:1 edges, no ring.
-        variants = ["soft", "steel_wire", "impact"]
+        # A composite cable takes uniform segments and sets shapes only when clamped: no
+        # hairpin, no 1000:1 edges.
+        variants = ["soft", "steel_wire", "impact", "ring_20_turns"]
     else:
         variants = ["soft", "steel_wire", "impact", "hairpin", "edge_ratio"] + (
-            ["ring_20_turns"] if p.backend == "der" else [])
+            ["ring_20_turns"] if "michell" in BACKEND_CASES[p.backend] else [])
     for name in variants:
         q = p
         t0 = time.perf_counter()
+        watching = 0.0  # time spent checking the run, not running it [s]
         world, outcome, note = None, "stable", ""
         try:
             if name in ("soft", "steel_wire"):
@@ -525,26 +531,54 @@ def extreme(p: CaseParams) -> list[dict]:
                 world = _clamped_rod(q, x, q.gravity, 0.0)
                 world.step(int(round(1.0 / q.dt)))
             else:  # ring_20_turns
-                x = shapes.circle(q.length / (2 * math.pi), q.n_edges, center=(0.0, 0.0, 0.5))
-                world = World(dt=q.dt, gravity=(0.0, 0.0, 0.0), mode=q.mode,
-                              contact=ContactParams(self_collision=True))
-                world.add_rod(Rod(x, q.material, closed=True, natural_curvature=False,
-                                  boundary=TwistBoundary("ring", total_twist=40 * math.pi)), "rod")
+                x = shapes.circle(q.length / (2 * math.pi), q.n_edges)
+                if p.backend == "der":
+                    world = World(dt=q.dt, gravity=(0.0, 0.0, 0.0), mode=q.mode,
+                                  contact=ContactParams(self_collision=True))
+                    world.add_rod(Rod(x, q.material, closed=True, natural_curvature=False,
+                                      boundary=TwistBoundary("ring", total_twist=40 * math.pi)), "ring")
+                else:
+                    world = _twisted_ring(q, 40 * math.pi)
                 xp = x.copy()
                 xp[:, 2] += 1e-3 * np.sin(2 * np.linspace(0, 2 * math.pi, q.n_edges, endpoint=False))
-                world.set_positions("rod", xp)
-                world.step(int(round(1.0 / q.dt)))
+                world.set_positions("ring", xp)
+                gap = math.inf
+                for _ in range(int(round(1.0 / q.dt)) // 5):  # watch for the ring passing through itself
+                    world.step(5)
+                    t_watch = time.perf_counter()
+                    gap = min(gap, _closest_approach(world.positions("ring"), q.length / q.n_edges))
+                    watching += time.perf_counter() - t_watch
+                note = (f"closest approach of non-neighbouring parts {1000 * gap:.1f} mm "
+                        f"(r = {1000 * q.radius:g} mm)")
+                if gap < q.radius:
+                    outcome = "penetrated"
             if not np.all(np.isfinite(world.positions())):
                 outcome = "NaN"
         except DivergenceError as err:
             outcome, note = "diverged", str(err)
         except Exception as err:  # a setup the backend refuses is an outcome too
             outcome, note = "failed", f"{type(err).__name__}: {err}"
-        wall = time.perf_counter() - t0
+        wall = time.perf_counter() - t0 - watching
         rec = _record("extreme", q, world, None, None, outcome == "stable", wall, variant=name,
                       outcome=outcome, note=note)
         out.append(rec)
     return out
+
+
+def _closest_approach(x: np.ndarray, spacing: float, samples: int = 8) -> float:
+    """Smallest distance [m] between points of a closed polyline ``x`` (n, 3) that lie
+    more than 3 ``spacing`` apart along it. Each edge is sampled at ``samples`` points,
+    so the answer exceeds the segment-to-segment distance by at most spacing / samples."""
+    e = np.roll(x, -1, axis=0) - x
+    s = (np.arange(samples) + 0.5) / samples
+    pts = (x[:, None, :] + s[None, :, None] * e[:, None, :]).reshape(-1, 3)
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(e, axis=1))])
+    along = (arc[:-1, None] + s[None, :] * np.linalg.norm(e, axis=1)[:, None]).ravel()
+    total = arc[-1]
+    sep = np.abs(along[:, None] - along[None, :])
+    sep = np.minimum(sep, total - sep)  # along a closed loop
+    dist = np.linalg.norm(pts[:, None, :] - pts[None, :, :], axis=-1)
+    return float(dist[sep > 3 * spacing].min())
 
 
 #: The drop scenes: derods loads the MJCF file, the native backends get the same geoms inline.

@@ -26,6 +26,12 @@ rod baselines):
   contacts once edges are shorter than 2 r).
 * damping: mass-proportional, ``dof_damping = a m_vertex`` on the vertex dofs
   (implicit under ``discrete``), the same a [1/s] as derods' mass_damping.
+
+The cable (:func:`cable_xml`): the same vertices as an explicit ``vertex``
+list, ``bend=E``, ``twist=G``, ``flat="true"`` (naturally straight), geom mass
+rho A h per segment, ``initial="none"`` for a clamp, joint damping 0.01 E I / h,
+``implicitfast``. Twisted rings for Michell's case: see the comment above
+:class:`FlexRing`.
 """
 
 from __future__ import annotations

@@ -50,3 +50,20 @@ def test_format_record_of_a_case_without_a_measure():
            "variant": "soft", "outcome": "stable", "note": ""}
     line = bench.format_record(rec)
     assert "soft: stable" in line and "120 us/step" in line
+
+
+def test_closest_approach_sees_a_ring_pass_through_itself():
+    """The extreme ring's self-penetration check: a figure eight crosses itself (distance 0,
+    up to the sampling error spacing / 8); a circle's nearest non-neighbouring parts are a
+    chord of just over 3 edge lengths apart along it."""
+    import math
+
+    import numpy as np
+
+    t = np.linspace(0, 2 * math.pi, 80, endpoint=False)
+    eight = np.stack([np.sin(t), np.sin(t) * np.cos(t), 0 * t], axis=1)
+    h = np.linalg.norm(np.diff(eight, axis=0), axis=1).max()
+    assert bench._closest_approach(eight, h) < h / 8
+    circle = np.stack([np.cos(t), np.sin(t), 0 * t], axis=1)
+    h = 2 * math.sin(math.pi / 80)
+    assert 3 * h * 0.99 < bench._closest_approach(circle, h) < 3.3 * h
