@@ -231,7 +231,11 @@ def report(results, out_dir, command: str = "") -> pathlib.Path:
     lines += [f"Generated {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} from {len(records)} records "
               f"in `{pathlib.Path(results).name}`" + (f" by `{command}`" if command else "") + ".",
               f"Machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}; "
-              "MuJoCo per backend: " + ", ".join(f"{b} {v}" for b, v in versions) + ".", ""]
+              "MuJoCo per backend: " + ", ".join(f"{b} {v}" for b, v in versions) + "."]
+    if any(r.get("backend") == "cable" for r in records):
+        lines.append("The cable records come from the same sweep with `--backends cable` in the MuJoCo 3.17 "
+                     "environment; `make report` runs both, appending to one results file.")
+    lines.append("")
     for case in cases:
         fig, ax = plt.subplots(figsize=(6.4, 4.2))
         pts, labels = [], []
