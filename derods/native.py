@@ -335,6 +335,15 @@ def _ring_vertices(p) -> np.ndarray:
     return shapes.circle(p.length / (2.0 * math.pi), p.n_edges)
 
 
+def _ring_layout(rest: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """The n + 2 points of a native ring placed at ``x`` (n, 3) [m]: x with its first edge
+    kept at rest (it is clamped), then that edge again (the closing edge)."""
+    x = np.asarray(x, dtype=float)
+    if x.shape != rest.shape:
+        raise ValueError(f"x must have shape {rest.shape}, one row per ring vertex, got {x.shape}")
+    return np.concatenate([rest[:2], x[2:], rest[:2]])
+
+
 class FlexRing(NativeRod):
     """A naturally straight flexcomp ring with total twist (see the comment above).
 
@@ -364,10 +373,7 @@ class FlexRing(NativeRod):
         """Place the ring at ``x`` (n, 3) [m] at rest, twisted evenly; x's first two rows
         (the clamped edge) are ignored."""
         n = len(self.rest)
-        x = np.asarray(x, dtype=float)
-        if x.shape != (n, 3):
-            raise ValueError(f"x must have shape ({n}, 3), one row per ring vertex, got {x.shape}")
-        super().set_positions(name, np.concatenate([self.rest[:2], x[2:], self.rest[:2]]))
+        super().set_positions(name, _ring_layout(self.rest, x))
         self.data.qpos[self._twist_qpos] = self.total_twist * np.arange(1, n + 1) / n
         mujoco.mj_forward(self.model, self.data)
 
@@ -423,11 +429,7 @@ class CableRing(CableRod):
         """Place the ring at ``x`` (n, 3) [m] at rest, twisted evenly; x's first two rows
         (the clamped segment) are ignored."""
         n = len(self.rest)
-        x = np.asarray(x, dtype=float)
-        if x.shape != (n, 3):
-            raise ValueError(f"x must have shape ({n}, 3), one row per ring vertex, got {x.shape}")
-        full = np.concatenate([self.rest[:2], x[2:], self.rest[:2]])
-        self._set_segments(full, self.total_twist * np.arange(n + 1) / n)
+        self._set_segments(_ring_layout(self.rest, x), self.total_twist * np.arange(n + 1) / n)
 
 
 def cable_ring(p, total_twist: float, joint_damping_time: float = 0.01) -> CableRing:
