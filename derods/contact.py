@@ -28,7 +28,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from ._kernels import rows_band, rows_diag
+from ._kernels import (exact_line_search, rows_apply, rows_band, rows_diag, rows_transpose_apply,
+                       sparse_triplets, split_rows)
 from .implicit import ImplicitSystem
 from .stencil import XX_BANDWIDTH
 
@@ -69,13 +70,9 @@ class Rows:
     def n_banded(self) -> int:
         return len(self.col0)
 
-    def _window(self) -> np.ndarray:
-        return self.col0[:, None] + np.arange(_W)
-
     def apply(self, a: np.ndarray) -> np.ndarray:
         """J a for every row, shape (k,)."""
-        pad = np.concatenate([a, np.zeros(_W)])
-        out = np.einsum("kw,kw->k", self.jw, pad[self._window()])
+        out = rows_apply(self.col0, self.jw, np.ascontiguousarray(a, dtype=float))
         if self.jf is not None:
             out = np.concatenate([out, self.jf @ a])
         return out
@@ -83,7 +80,7 @@ class Rows:
     def transpose_apply(self, lam: np.ndarray, n: int) -> np.ndarray:
         """J^T lam, shape (n,)."""
         kb = self.n_banded
-        out = np.bincount(self._window().ravel(), (self.jw * lam[:kb, None]).ravel(), minlength=n + _W)[:n]
+        out = rows_transpose_apply(self.col0, self.jw, np.ascontiguousarray(lam[:kb], dtype=float), n)
         if self.jf is not None:
             out = out + self.jf.T @ lam[kb:]
         return out
@@ -106,8 +103,7 @@ class Rows:
         zb, corrections = system.inverse_diagonal_terms()
         diag_a = rows_diag(self.col0, self.jw, zb)
         for zvec, w in corrections:
-            zp = np.concatenate([zvec, np.zeros(_W)])
-            diag_a -= w * np.einsum("kw,kw->k", self.jw, zp[self._window()]) ** 2
+            diag_a -= w * rows_apply(self.col0, self.jw, zvec) ** 2
         if self.jf is not None:
             diag_a = np.concatenate([diag_a, np.einsum("kn,nk->k", self.jf, system.solve(self.jf.T))])
         self.d = 1.0 / (self.r_over_diag * diag_a)
@@ -121,59 +117,24 @@ def rod_rows(model: mujoco.MjModel, data: mujoco.MjData, local_of_dof: np.ndarra
     n: number of local dofs. Returns (rows or None, external force [N] on the local dofs (n,)).
     """
     nefc = data.nefc
-    ext = np.zeros(n)
     if nefc == 0:
-        return None, ext
+        return None, np.zeros(n)
     if mujoco.mj_isSparse(model):
-        rownnz = data.efc_J_rownnz[:nefc]
-        row = np.repeat(np.arange(nefc), rownnz)
-        start = data.efc_J_rowadr[:nefc]
-        # Positions of every nonzero: row start plus the rank within the row.
-        first = np.repeat(np.cumsum(rownnz) - rownnz, rownnz)
-        pos = np.repeat(start, rownnz) + np.arange(len(row)) - first
-        col = data.efc_J_colind[pos]
-        val = data.efc_J[pos]
+        row, col, val = sparse_triplets(data.efc_J_rownnz[:nefc], data.efc_J_rowadr[:nefc],
+                                        data.efc_J_colind, data.efc_J)
     else:
         dense = data.efc_J[: nefc * model.nv].reshape(nefc, model.nv)
         row, col = np.nonzero(dense)
         val = dense[row, col]
-    local = local_of_dof[col]
-    on_rod = local >= 0
-    touches = np.zeros(nefc, dtype=bool)
-    touches[row[on_rod]] = True
-    if not touches.any():
-        return None, ext
-    elsewhere = np.zeros(nefc, dtype=bool)
-    elsewhere[row[~on_rod]] = True
-    lo = np.full(nefc, np.iinfo(np.int64).max)
-    hi = np.full(nefc, -1)
-    np.minimum.at(lo, row[on_rod], local[on_rod])
-    np.maximum.at(hi, row[on_rod], local[on_rod])
     types = data.efc_type[:nefc]
     supported = (types == _SUPPORTED[0]) | (types == _SUPPORTED[1])
-    mine = touches & ~elsewhere & supported
-    external = touches & ~mine
-    if external.any():
-        sel = on_rod & external[row]
-        np.add.at(ext, local[sel], val[sel] * data.efc_force[row[sel]])
-    if not mine.any():
+    as_int = lambda a: np.asarray(a, dtype=np.int64)  # noqa: E731 (no copy when already int64)
+    efc, kb, col0, jw, jf, ext = split_rows(as_int(row), as_int(col), val, as_int(local_of_dof), supported,
+                                            data.efc_force[:nefc], n, _W)
+    if not len(efc):
         return None, ext
-    banded = mine & (hi - lo < _W)
-    far = mine & ~banded
-    efc = np.concatenate([np.flatnonzero(banded), np.flatnonzero(far)])
-    k_of_row = np.full(nefc, -1)
-    k_of_row[efc] = np.arange(len(efc))
-    kb = int(banded.sum())
-    sel = on_rod & banded[row]
-    jw = np.zeros((kb, _W))
-    jw[k_of_row[row[sel]], local[sel] - lo[row[sel]]] = val[sel]
-    jf = None
-    if far.any():
-        sel = on_rod & far[row]
-        jf = np.zeros((len(efc) - kb, n))
-        jf[k_of_row[row[sel]] - kb, local[sel]] = val[sel]
-    rows = Rows(lo[efc[:kb]], jw, data.efc_aref[efc].copy(), data.efc_D[efc].copy(), efc,
-                data.efc_R[efc] / data.efc_diagA[efc], jf)
+    rows = Rows(col0, jw, data.efc_aref[efc].copy(), data.efc_D[efc].copy(), efc,
+                data.efc_R[efc] / data.efc_diagA[efc], jf if len(efc) > kb else None)
     return rows, ext
 
 
@@ -217,18 +178,7 @@ def solve(system: ImplicitSystem, a0: np.ndarray, rows: Rows, max_iter: int = 30
         # Exact line search on f(a + t delta): f'(t) is piecewise linear and increasing.
         jd = rows.apply(delta)
         ad = system.a_matvec(delta)
-        d_a = delta @ ad
-        d_g = delta @ am
-        t = 1.0
-        for _ in range(20):
-            r = jar + t * jd
-            act = r < 0
-            fp = t * d_a + d_g + np.sum(rows.d[act] * r[act] * jd[act])
-            fpp = d_a + np.sum(rows.d[act] * jd[act] ** 2)
-            step = fp / fpp
-            t -= step
-            if abs(step) <= 1e-12 * max(1.0, abs(t)):
-                break
+        t = exact_line_search(jar, jd, rows.d, float(delta @ ad), float(delta @ am))
         a = a + t * delta
         am = am + t * ad
         jar = jar + t * jd
