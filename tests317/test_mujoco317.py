@@ -79,3 +79,12 @@ def test_cable_ring_twisted_twenty_turns_is_an_outcome():
     rec = [r for r in bench.extreme(CaseParams(n_edges=20, dt=2e-3, backend="cable"))
            if r["variant"] == "ring_20_turns"][0]
     assert rec["outcome"] in ("stable", "diverged", "penetrated", "NaN") and rec["note"]
+
+
+def test_cable_curls_into_a_circle_without_touching_itself():
+    """The end couple 2 pi alpha / L closes the cable into a circle (measured 1.8e-6 L at
+    n = 20): its segments touch the scene but not each other (with self-contact it diverged
+    when the tip met the clamp)."""
+    rec, = bench.circle(CaseParams(n_edges=20, backend="cable"))
+    assert rec["stable"], rec["note"]
+    assert rec["measured"] < 1e-3
