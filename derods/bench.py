@@ -281,18 +281,19 @@ def _out_of_plane(x: np.ndarray) -> float:
     return float(np.linalg.svd(c, compute_uv=False)[-1] / math.sqrt(len(x)))
 
 
-def _twisted_ring(p: CaseParams, total_twist: float):
-    """A naturally straight ring (circumference L, in the xy plane) with total twist
+def _twisted_ring(p: CaseParams, total_twist: float, self_contact: bool = False):
+    """A naturally straight ring (:func:`derods.native.ring_vertices`) with total twist
     ``total_twist`` [rad], without gravity, in the chosen backend. derods closes the rod
-    itself; the native rings are open rods whose last edge is held on their clamped first
-    (see :mod:`derods.native`), which leaves Michell's threshold unchanged."""
+    itself (with self-contact if asked); the native rings are open rods whose last edge is
+    held on their clamped first (see :mod:`derods.native`), which leaves Michell's threshold
+    unchanged, and never touch themselves."""
     if p.backend == "flex":
         return native.flex_ring(p, total_twist)
     if p.backend == "cable":
         return native.cable_ring(p, total_twist)
-    x = shapes.circle(p.length / (2 * math.pi), p.n_edges)
-    world = World(dt=p.dt, gravity=(0.0, 0.0, 0.0), mode=p.mode)
-    world.add_rod(Rod(x, p.material, closed=True, natural_curvature=False,
+    world = World(dt=p.dt, gravity=(0.0, 0.0, 0.0), mode=p.mode,
+                  contact=ContactParams(self_collision=self_contact))
+    world.add_rod(Rod(native.ring_vertices(p), p.material, closed=True, natural_curvature=False,
                       boundary=TwistBoundary("ring", total_twist=total_twist)), "ring")
     return world
 
@@ -312,7 +313,7 @@ def ring_buckles(p: CaseParams, total_twist: float, perturbation: float = 1e-3) 
     mat = p.material
     radius = p.length / (2 * math.pi)
     world = _twisted_ring(p, total_twist)
-    x = shapes.circle(radius, p.n_edges)
+    x = native.ring_vertices(p)
     phi = 2 * math.pi * np.arange(p.n_edges) / p.n_edges
     xp = x.copy()
     xp[:, 2] += perturbation * radius * (np.sin(2 * phi) + 0.1 * np.cos(3 * phi))
@@ -533,15 +534,8 @@ def extreme(p: CaseParams) -> list[dict]:
                 world = _clamped_rod(q, x, q.gravity, 0.0)
                 world.step(int(round(1.0 / q.dt)))
             else:  # ring_20_turns
-                x = shapes.circle(q.length / (2 * math.pi), q.n_edges)
-                if p.backend == "der":
-                    world = World(dt=q.dt, gravity=(0.0, 0.0, 0.0), mode=q.mode,
-                                  contact=ContactParams(self_collision=True))
-                    world.add_rod(Rod(x, q.material, closed=True, natural_curvature=False,
-                                      boundary=TwistBoundary("ring", total_twist=40 * math.pi)), "ring")
-                else:
-                    world = _twisted_ring(q, 40 * math.pi)
-                xp = x.copy()
+                world = _twisted_ring(q, 40 * math.pi, self_contact=True)
+                xp = native.ring_vertices(q)
                 xp[:, 2] += 1e-3 * np.sin(2 * np.linspace(0, 2 * math.pi, q.n_edges, endpoint=False))
                 world.set_positions("ring", xp)
                 gap = math.inf

@@ -128,9 +128,7 @@ def rod_rows(model: mujoco.MjModel, data: mujoco.MjData, local_of_dof: np.ndarra
         val = dense[row, col]
     types = data.efc_type[:nefc]
     supported = (types == _SUPPORTED[0]) | (types == _SUPPORTED[1])
-    as_int = lambda a: np.asarray(a, dtype=np.int64)  # noqa: E731 (no copy when already int64)
-    efc, kb, col0, jw, jf, ext = split_rows(as_int(row), as_int(col), val, as_int(local_of_dof), supported,
-                                            data.efc_force[:nefc], n, _W)
+    efc, kb, col0, jw, jf, ext = split_rows(row, col, val, local_of_dof, supported, data.efc_force[:nefc], n, _W)
     if not len(efc):
         return None, ext
     rows = Rows(col0, jw, data.efc_aref[efc].copy(), data.efc_D[efc].copy(), efc,

@@ -294,18 +294,26 @@ class CableRod(NativeRod):
         mujoco.mj_forward(m, d)
 
 
+def _require_cable() -> None:
+    if not has_cable():
+        raise ValueError(f"the cable plugin was removed in MuJoCo 4.0 (this is {mujoco.__version__}); "
+                         "run in the MuJoCo 3.17 environment: make venv317")
+
+
+def _cable_damping(mat, h: float, joint_damping_time: float) -> float:
+    """Stiffness-proportional joint damping beta_d E I / h [N m s] for segments of length h [m]."""
+    return joint_damping_time * mat.young * mat.second_moments[0] / h
+
+
 def cable_rod(p, clamped: bool = True, gravity=None, start=(0.0, 0.0, 1.0), direction=(1.0, 0.0, 0.0),
               joint_damping_time: float = 0.01, scene_body: str = "") -> CableRod:
     """A cable for the benchmark parameters ``p``; joint damping = beta_d E I / h with
     beta_d = ``joint_damping_time`` [s] (stiffness-proportional, implicit: the cable
     needs it to be stable at large steps)."""
-    if not has_cable():
-        raise ValueError(f"the cable plugin was removed in MuJoCo 4.0 (this is {mujoco.__version__}); "
-                         "run in the MuJoCo 3.17 environment: make venv317")
+    _require_cable()
     mat = p.material
     grav = (0.0, 0.0, -p.gravity) if gravity is None else gravity
-    h = p.length / p.n_edges
-    damping = joint_damping_time * mat.young * mat.second_moments[0] / h
+    damping = _cable_damping(mat, p.length / p.n_edges, joint_damping_time)
     x = shapes.straight(p.length, p.n_edges, start, direction)
     xml = cable_xml(x, mat.radius, mat.density, mat.young, mat.shear_modulus, clamped, p.dt, grav, damping,
                     scene_body)
@@ -335,8 +343,9 @@ def _stiff(eq, dt: float) -> None:
     eq.solimp = list(CLOSURE_SOLIMP)
 
 
-def _ring_vertices(p) -> np.ndarray:
-    """The ring's rest vertices [m], (n, 3): circumference L in the xy plane (:func:`shapes.circle`)."""
+def ring_vertices(p) -> np.ndarray:
+    """The twisted ring's rest vertices [m], (n, 3), for benchmark parameters ``p``: circumference
+    ``p.length`` about the origin in the xy plane, starting on +y (:func:`shapes.circle`)."""
     return shapes.circle(p.length / (2.0 * math.pi), p.n_edges)
 
 
@@ -391,7 +400,7 @@ def flex_ring(p, total_twist: float) -> FlexRing:
                          f"{mujoco.__version__}: pip install -U mujoco")
     mat = p.material
     n = p.n_edges
-    rest = _ring_vertices(p)
+    rest = ring_vertices(p)
     h = float(np.linalg.norm(rest[1] - rest[0]))
     line = rest[0] + np.arange(n + 2)[:, None] * (rest[1] - rest[0])  # straight, edge length h
     nu, _ = poisson_for(mat.young, mat.shear_modulus)
@@ -440,13 +449,10 @@ class CableRing(CableRod):
 def cable_ring(p, total_twist: float, joint_damping_time: float = 0.01) -> CableRing:
     """A naturally straight cable ring of circumference ``p.length`` with total twist
     ``total_twist`` [rad], without gravity (joint damping as :func:`cable_rod`)."""
-    if not has_cable():
-        raise ValueError(f"the cable plugin was removed in MuJoCo 4.0 (this is {mujoco.__version__}); "
-                         "run in the MuJoCo 3.17 environment: make venv317")
+    _require_cable()
     mat = p.material
-    rest = _ring_vertices(p)
-    h = float(np.linalg.norm(rest[1] - rest[0]))
-    damping = joint_damping_time * mat.young * mat.second_moments[0] / h
+    rest = ring_vertices(p)
+    damping = _cable_damping(mat, float(np.linalg.norm(rest[1] - rest[0])), joint_damping_time)
     xml = cable_xml(np.concatenate([rest, rest[:2]]), mat.radius, mat.density, mat.young, mat.shear_modulus,
                     clamped=True, dt=p.dt, gravity=(0.0, 0.0, 0.0), joint_damping=damping)
     spec = mujoco.MjSpec.from_string(xml)
