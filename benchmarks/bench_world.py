@@ -30,7 +30,7 @@ import numpy as np
 
 import derods
 from derods import shapes
-from derods.world import World
+from derods import World
 
 E, R, RHO, L, DT = 1e8, 0.01, 1000.0, 1.0, 1e-2
 

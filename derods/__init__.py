@@ -10,7 +10,7 @@ frame), :mod:`derods.shapes` (rest shapes and Bezier curves) and
 
 # MuJoCo picks its OpenGL backend when first imported: choose EGL (headless) first
 # when there is no display, unless the user chose a backend.
-from .render import ensure_headless_gl as _ensure_headless_gl
+from .viz.render import ensure_headless_gl as _ensure_headless_gl
 
 _ensure_headless_gl()
 
@@ -22,14 +22,32 @@ from . import frames, geometry, shapes  # noqa: E402
 
 __version__ = "0.1.0"
 
+#: Names served from :mod:`derods.sim` on first use, so that ``import derods`` stays light
+#: (the simulation layer loads MuJoCo and the compiled kernels).
+_SIM_NAMES = {"World": "derods.sim.world", "ContactParams": "derods.sim.world",
+              "DivergenceError": "derods.sim.divergence", "MODES": "derods.sim.world"}
+
+
+def __getattr__(name):
+    if name in _SIM_NAMES:
+        import importlib
+
+        return getattr(importlib.import_module(_SIM_NAMES[name]), name)
+    raise AttributeError(f"module 'derods' has no attribute {name!r}")
+
+
 __all__ = [
+    "ContactParams",
     "Configuration",
+    "DivergenceError",
+    "MODES",
     "Derivatives",
     "Hessian",
     "Material",
     "Rod",
     "RodState",
     "TwistBoundary",
+    "World",
     "frames",
     "geometry",
     "shapes",

@@ -400,7 +400,7 @@ class Rod:
                          grad_theta=d.grad_theta)
 
     def _step_terms_kernel(self, state: RodState, x: np.ndarray, bd: TwistBoundary) -> StepTerms:
-        from . import _kernels
+        from ._numba import step as _kernels
 
         batch = x.shape[:-2]
         nv, ne, nj = self.n_vertices, self.n_edges, self.n_vertices - 2

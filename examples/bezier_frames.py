@@ -13,7 +13,7 @@ import argparse
 import pathlib
 
 import derods  # noqa: F401
-from derods import figures
+from derods.viz import figures
 
 
 def main(argv=None):

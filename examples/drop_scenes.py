@@ -12,7 +12,7 @@ import argparse
 import pathlib
 
 import derods  # noqa: F401  (chooses a headless OpenGL backend before MuJoCo loads one)
-from derods import drop
+from derods.apps import drop
 
 
 def main(argv=None):

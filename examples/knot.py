@@ -17,8 +17,9 @@ import derods
 import mujoco
 import numpy as np
 
-from derods import render, shapes
-from derods.world import ContactParams, World
+from derods import shapes
+from derods.viz import render
+from derods import ContactParams, World
 
 
 def main(argv=None):

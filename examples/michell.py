@@ -14,7 +14,8 @@ import argparse
 import pathlib
 
 import derods  # noqa: F401
-from derods import bench, figures
+from derods import bench
+from derods.viz import figures
 
 
 def main(argv=None):

@@ -20,8 +20,9 @@ import mujoco
 import numpy as np
 from scipy.optimize import brentq
 
-from derods import render, shapes
-from derods.world import ContactParams, World
+from derods import shapes
+from derods.viz import render
+from derods import ContactParams, World
 
 
 def slack_rod(length: float, gap: float, n_edges: int, height: float = 0.5) -> np.ndarray:

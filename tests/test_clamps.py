@@ -11,7 +11,7 @@ import pytest
 import derods
 from derods import bench, shapes
 from derods.bench import CaseParams
-from derods.world import World
+from derods import World
 
 
 def test_servo_twists_rod_and_feels_beta_theta_over_l():

@@ -8,9 +8,10 @@ import json
 import numpy as np
 import pytest
 
-from derods import bench, compare, native
+from derods import bench
+from derods.bench import native, report, sweep
 from derods.bench import CaseParams
-from derods.world import DivergenceError
+from derods import DivergenceError
 
 
 @pytest.mark.parametrize("young", [1e6, 1e8, 1e10])
@@ -42,18 +43,18 @@ def test_native_divergence_is_reported():
 
 def test_sweep_appends_resumes_and_reports(tmp_path):
     results = tmp_path / "r.jsonl"
-    jobs = compare.plan(["cantilever", "twist"], ["der", "flex"], [8, 12], [1e-2], young=1e9)
+    jobs = sweep.plan(["cantilever", "twist"], ["der", "flex"], [8, 12], [1e-2], young=1e9)
     # twist runs on derods only: 2 cantilever x 2 backends + 2 twist runs
     assert len(jobs) == 6
-    assert compare.sweep(jobs[:3], results, progress=False) == 3
+    assert sweep.sweep(jobs[:3], results, progress=False) == 3
     with open(results, "a") as f:
         f.write('{"case": "torn')  # a crash in the middle of a line
     with concurrent.futures.ThreadPoolExecutor(2) as ex:
-        assert compare.sweep(jobs, results, ex, progress=False) == 3  # only the missing ones
-    assert compare.sweep(jobs, results, progress=False) == 0
-    records = compare.load(results)
+        assert sweep.sweep(jobs, results, ex, progress=False) == 3  # only the missing ones
+    assert sweep.sweep(jobs, results, progress=False) == 0
+    records = sweep.load(results)
     assert len(records) == 6 and all(r["stable"] for r in records)
-    path = compare.report(results, tmp_path / "report", command="test")
+    path = report.report(results, tmp_path / "report", command="test")
     text = path.read_text()
     assert "## cantilever" in text and "cantilever.png" in text and "| 1 % |" in text
     assert (tmp_path / "report" / "cantilever.png").stat().st_size > 1000
@@ -61,7 +62,7 @@ def test_sweep_appends_resumes_and_reports(tmp_path):
 
 def test_pareto_front():
     pts = [(1.0, 0.1), (2.0, 0.05), (1.5, 0.2), (3.0, 0.01), (2.5, 0.06)]
-    assert compare.pareto(pts) == [0, 1, 3]
+    assert report.pareto(pts) == [0, 1, 3]
 
 
 def test_unknown_backend_case_is_an_error(capsys):
@@ -92,7 +93,7 @@ def test_extreme_cases_report_an_outcome_each():
 
 
 def test_backend_missing_from_this_mujoco_is_skipped_with_a_message(capsys):
-    jobs = compare.plan(["cantilever"], ["der", "cable"], [8], [1e-2])
+    jobs = sweep.plan(["cantilever"], ["der", "cable"], [8], [1e-2])
     assert [j.params.backend for j in jobs] == ["der"]
     err = capsys.readouterr().err
     assert "skipping backend 'cable'" in err and "make venv317" in err

@@ -7,9 +7,10 @@ import pytest
 import scipy.optimize
 
 import derods
-from derods import bench, contact, shapes
-from derods.implicit import ImplicitSystem
-from derods.world import World
+from derods import bench, shapes
+from derods.sim import contact
+from derods.sim.implicit import ImplicitSystem
+from derods import World
 
 
 def small_problem(rng, n_vertices=6, n_rows=7, n_far=0):

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from derods import drop, render
+from derods.apps import drop
+from derods.viz import render
 from derods.__main__ import main
 
 SMALL = ["--rods", "2", "--n-edges", "12", "--seconds", "0.6", "--fps", "10", "--width", "320",
@@ -44,7 +45,7 @@ def test_every_scene_loads_and_frames_its_rods(scene):
 
 
 def test_interrupted_drop_leaves_no_file(tmp_path, monkeypatch):
-    from derods import world as world_mod
+    from derods.sim import world as world_mod
 
     calls = {"n": 0}
     original = world_mod.World.step

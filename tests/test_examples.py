@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from derods import render
+from derods.viz import render
 
 ROOT = pathlib.Path(__file__).parents[1]
 EXAMPLES = {

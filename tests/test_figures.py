@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from derods import figures, render
+from derods.viz import figures, render
 from derods.__main__ import main
 
 

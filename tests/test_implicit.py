@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from derods._kernels import band_cholesky, band_matvec, band_solve, banded_inverse_band
-from derods.implicit import ImplicitSystem, restrict_band
+from derods._numba.banded import band_cholesky, band_matvec, band_solve, banded_inverse_band
+from derods.sim.implicit import ImplicitSystem, restrict_band
 
 
 def random_band(rng, n, bw=8):

@@ -7,7 +7,7 @@ import numpy as np
 
 import derods
 from derods import shapes
-from derods.world import ContactParams, World
+from derods import ContactParams, World
 
 
 def segment_distances(x: np.ndarray, min_gap: int = 3) -> np.ndarray:

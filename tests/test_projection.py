@@ -7,7 +7,7 @@ import pytest
 
 from derods import bench
 from derods.bench import CaseParams
-from derods.projection import project
+from derods.sim.projection import project
 
 
 def test_projection_restores_edge_lengths_and_keeps_held_vertices():

@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 
 import derods
-from derods import bench, frames, geometry, native, shapes
+from derods import bench, frames, geometry, shapes
+from derods.bench import native
 from derods.bench import CaseParams
-from derods.world import World
+from derods import World
 
 E, RADIUS = 1e7, 0.005
 

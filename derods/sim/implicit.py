@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._kernels import band_cholesky, band_matvec, band_solve
-from .stencil import XX_BANDWIDTH
+from .._numba.banded import band_cholesky, band_matvec, band_solve
+from ..stencil import XX_BANDWIDTH
 
 
 def banded_matvec(ab: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -100,7 +100,7 @@ class ImplicitSystem:
         A (Takahashi's recurrence on its factor); corrections a list of (z, w) with
         A^-1 = B^-1 - sum w z z^T (Sherman-Morrison for the rank-one twist terms).
         """
-        from ._kernels import banded_inverse_band
+        from .._numba.banded import banded_inverse_band
 
         zb = banded_inverse_band(self.factor())
         corrections = []

@@ -16,12 +16,13 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from . import render, shapes
-from .rod import Material, Rod
-from .twist import TwistBoundary
-from .world import ContactParams, World
+from .. import shapes
+from ..viz import render
+from ..rod import Material, Rod
+from ..twist import TwistBoundary
+from ..sim.world import ContactParams, World
 
-MJCF_DIR = pathlib.Path(__file__).resolve().parents[1] / "mjcf"
+MJCF_DIR = pathlib.Path(__file__).resolve().parents[2] / "mjcf"
 SHAPES = ("straight", "helix", "bezier", "ring")
 OVERLAYS = ("none", "frames", "bend", "twist")
 #: Default control points of the "bezier" shape (scaled to the rod length).
@@ -149,7 +150,8 @@ def build_world(p: DropParams) -> World:
 
 def overlay_painter(world: World, kind: str):
     """A scene callback that draws ``kind`` ("frames" or "bend") for every rod, or None."""
-    from . import frames, overlay
+    from .. import frames
+    from ..viz import overlay
 
     if kind == "none":
         return None

@@ -72,7 +72,7 @@ def add_tube(scene, x: np.ndarray, radius: float, rgba_per_edge: np.ndarray, clo
 def bending_strain(x: np.ndarray, closed: bool) -> np.ndarray:
     """Curvature per edge [1/m], shape (n_edges,): the mean over the edge's joints of
     |kb| / (mean length of the joint's two edges). Times the radius it is the bending strain."""
-    from .geometry import curvature_binormal, edges, norm
+    from ..geometry import curvature_binormal, edges, norm
 
     kb = norm(curvature_binormal(x, closed))
     h = norm(edges(x, closed))
@@ -89,8 +89,8 @@ def twisting_strain(rod, state) -> np.ndarray:
     """Twist rate per edge [rad/m], shape (n_edges,): m_k / (l_k / 2) at the joints
     (the material frame's turn per Voronoi length), averaged onto edges. Times the
     radius it is the shear strain of twisting."""
-    from .frames import reference_twist
-    from .geometry import joint_pairs
+    from ..frames import reference_twist
+    from ..geometry import joint_pairs
 
     th_a, th_b = joint_pairs(state.theta[..., None], rod.closed)
     m = th_b[..., 0] - th_a[..., 0] + reference_twist(state.u, state.t, rod.closed)

@@ -47,12 +47,13 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from . import native, reference, shapes
-from .rod import Material, Rod
-from .twist import TwistBoundary
-from .world import ContactParams, DivergenceError, World
+from .. import reference, shapes
+from . import native
+from ..rod import Material, Rod
+from ..twist import TwistBoundary
+from ..sim.world import ContactParams, DivergenceError, World
 
-MJCF_DIR = pathlib.Path(__file__).resolve().parents[1] / "mjcf"
+MJCF_DIR = pathlib.Path(__file__).resolve().parents[2] / "mjcf"
 CASES = ("cantilever", "frequency", "drop", "michell", "circle", "twist", "stability", "extreme")
 BACKENDS = ("der", "flex", "cable")
 #: Cases each backend can run.

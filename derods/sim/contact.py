@@ -28,10 +28,10 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from ._kernels import (exact_line_search, rows_apply, rows_band, rows_diag, rows_transpose_apply,
+from .._numba.contact_rows import (exact_line_search, rows_apply, rows_band, rows_diag, rows_transpose_apply,
                        sparse_triplets, split_rows)
 from .implicit import ImplicitSystem
-from .stencil import XX_BANDWIDTH
+from ..stencil import XX_BANDWIDTH
 
 _W = XX_BANDWIDTH + 1  # width of a row's dof window that keeps the Hessian banded
 _SUPPORTED = (int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL),

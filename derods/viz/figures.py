@@ -8,7 +8,8 @@ import math
 import mujoco
 import numpy as np
 
-from . import frames, overlay, render, shapes
+from .. import frames, shapes
+from . import overlay, render
 
 #: Control points [m] of the default two-segment cubic Bezier curve.
 BEZIER_DEMO = np.array([
@@ -91,9 +92,9 @@ def michell_pair(out, n_edges: int = 50, below: float = 0.9, above: float = 1.2,
                  width: int = 960, height: int = 480) -> dict:
     """Write a PNG of two twisted rings after ``seconds``: at ``below`` and ``above``
     times Michell's critical twist 2 pi sqrt(3) alpha / beta (left planar, right buckled)."""
-    from .rod import Material, Rod
-    from .twist import TwistBoundary
-    from .world import ContactParams, World
+    from ..rod import Material, Rod
+    from ..twist import TwistBoundary
+    from ..sim.world import ContactParams, World
 
     out = render.check_output_path(out)
     mat = Material(young=1e7, radius=0.005, shear=0.5e7)  # alpha = beta

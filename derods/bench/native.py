@@ -41,8 +41,8 @@ import math
 import mujoco
 import numpy as np
 
-from . import frames, shapes
-from .world import MAX_SPEED, DivergenceError
+from .. import frames, shapes
+from ..sim.divergence import MAX_SPEED, DivergenceError
 
 
 def has_flex_elasticity() -> bool:

@@ -39,26 +39,17 @@ from dataclasses import dataclass, field, replace
 import mujoco
 import numpy as np
 
-from . import frames
+from .. import frames
 from . import contact
+from .divergence import MAX_SPEED, MAX_STRAIN, DivergenceError  # noqa: F401
 from .implicit import ImplicitSystem, restrict_band
-from .stencil import ring_order
-from .geometry import edges as _edges
-from .rod import Rod, RodState
-from .twist import TwistBoundary
+from ..stencil import ring_order
+from ..geometry import edges as _edges
+from ..rod import Rod, RodState
+from ..twist import TwistBoundary
 
 END_KINDS = ("free", "pin", "clamp")
 MODES = ("auto", "implicit", "explicit", "projection")
-
-#: Divergence thresholds: an edge stretched beyond this strain, or a vertex faster
-#: than this [m/s], means the step has lost the solution.
-MAX_STRAIN = 0.5
-MAX_SPEED = 1e3
-
-
-class DivergenceError(RuntimeError):
-    """The simulation lost the solution; the message names the step, the rod and a fix."""
-
 
 @dataclass(frozen=True)
 class ContactParams:

@@ -1,0 +1,178 @@
+"""Constraint rows of MuJoCo's contacts on rod dofs, compiled: splitting, products, line search.
+
+A row that touches only neighbouring vertices of one rod fits a window of a few
+dofs (a "banded" row: first dof ``col0`` and entries ``jw``); other rows touch
+distant dofs ("far" rows, dense over the local dofs). See
+:mod:`derods.sim.contact` for the problem these rows enter.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+
+@nb.njit(cache=True)
+def rows_band(col0, jw, weights, n):
+    """Lower band (W, n) of sum_i w_i j_i j_i^T for rows j_i confined to windows
+    [col0_i, col0_i + W) with entries jw_i (W = jw.shape[1])."""
+    w_ = jw.shape[1]
+    out = np.zeros((w_, n))
+    for i in range(len(col0)):
+        wi = weights[i]
+        if wi == 0.0:
+            continue
+        c0 = col0[i]
+        for q in range(w_):
+            if c0 + q >= n:
+                break
+            jq = jw[i, q] * wi
+            if jq == 0.0:
+                continue
+            for p in range(q, w_):
+                if c0 + p >= n:
+                    break
+                out[p - q, c0 + q] += jw[i, p] * jq
+    return out
+
+
+@nb.njit(cache=True)
+def rows_diag(col0, jw, zb):
+    """j_i^T Z j_i for each windowed row, Z symmetric with lower band zb (>= W rows)."""
+    w_ = jw.shape[1]
+    n = zb.shape[1]
+    out = np.zeros(len(col0))
+    for i in range(len(col0)):
+        c0 = col0[i]
+        acc = 0.0
+        for q in range(w_):
+            if c0 + q >= n:
+                break
+            jq = jw[i, q]
+            if jq == 0.0:
+                continue
+            acc += jq * jq * zb[0, c0 + q]
+            for p in range(q + 1, w_):
+                if c0 + p >= n:
+                    break
+                acc += 2.0 * jw[i, p] * jq * zb[p - q, c0 + q]
+        out[i] = acc
+    return out
+
+
+@nb.njit(cache=True)
+def rows_apply(col0, jw, a):
+    """J a for rows confined to windows [col0_i, col0_i + W) with entries jw_i; shape (k,)."""
+    n = a.shape[0]
+    out = np.zeros(len(col0))
+    for i in range(len(col0)):
+        c0 = col0[i]
+        acc = 0.0
+        for q in range(min(jw.shape[1], n - c0)):
+            acc += jw[i, q] * a[c0 + q]
+        out[i] = acc
+    return out
+
+
+@nb.njit(cache=True)
+def rows_transpose_apply(col0, jw, lam, n):
+    """J^T lam for windowed rows (as :func:`rows_apply`); shape (n,)."""
+    out = np.zeros(n)
+    for i in range(len(col0)):
+        c0 = col0[i]
+        for q in range(min(jw.shape[1], n - c0)):
+            out[c0 + q] += jw[i, q] * lam[i]
+    return out
+
+
+@nb.njit(cache=True)
+def exact_line_search(jar, jd, d, d_a, d_g, max_iter=20):
+    """Step t minimizing f(t) = t^2 d_a / 2 + t d_g + sum_i d_i min(jar_i + t jd_i, 0)^2 / 2
+    by Newton's method on the piecewise linear, increasing f'(t), from t = 1."""
+    t = 1.0
+    for _ in range(max_iter):
+        fp = t * d_a + d_g
+        fpp = d_a
+        for i in range(len(jar)):
+            r = jar[i] + t * jd[i]
+            if r < 0.0:
+                fp += d[i] * r * jd[i]
+                fpp += d[i] * jd[i] * jd[i]
+        step = fp / fpp
+        t -= step
+        if abs(step) <= 1e-12 * max(1.0, abs(t)):
+            break
+    return t
+
+
+@nb.njit(cache=True)
+def sparse_triplets(rownnz, rowadr, colind, values):
+    """(row, col, value) of every nonzero of a CSR matrix (MuJoCo's sparse efc_J)."""
+    total = 0
+    for r in range(len(rownnz)):
+        total += rownnz[r]
+    row = np.empty(total, dtype=np.int64)
+    col = np.empty(total, dtype=np.int64)
+    val = np.empty(total)
+    p = 0
+    for r in range(len(rownnz)):
+        for q in range(rownnz[r]):
+            row[p] = r
+            col[p] = colind[rowadr[r] + q]
+            val[p] = values[rowadr[r] + q]
+            p += 1
+    return row, col, val
+
+
+@nb.njit(cache=True)
+def split_rows(row, col, val, local_of_dof, supported, force, n, width):
+    """Sort constraint rows that touch rod dofs (see :func:`derods.contact.rod_rows`).
+
+    row, col, val: the nonzeros of MuJoCo's efc_J; local_of_dof (nv,): local rod dof or -1;
+    supported (nefc,): rows derods can solve; force (nefc,): MuJoCo's row forces; n: local
+    dofs; width: window of a banded row. A row is derods' if it touches only rod dofs and is
+    supported; its force is MuJoCo's otherwise (returned as ext on the local dofs).
+    Returns (efc: derods' rows, banded first; kb: how many are banded; col0 (kb,);
+    jw (kb, width); jf (k - kb, n); ext (n,)).
+    """
+    nefc = len(supported)
+    touches = np.zeros(nefc, dtype=np.bool_)
+    elsewhere = np.zeros(nefc, dtype=np.bool_)
+    lo = np.full(nefc, np.iinfo(np.int64).max)
+    hi = np.full(nefc, -1)
+    for p in range(len(row)):
+        r = row[p]
+        loc = local_of_dof[col[p]]
+        if loc >= 0:
+            touches[r] = True
+            lo[r] = min(lo[r], loc)
+            hi[r] = max(hi[r], loc)
+        else:
+            elsewhere[r] = True
+    mine = touches & ~elsewhere & supported
+    ext = np.zeros(n)
+    for p in range(len(row)):
+        r = row[p]
+        loc = local_of_dof[col[p]]
+        if loc >= 0 and touches[r] and not mine[r]:
+            ext[loc] += val[p] * force[r]
+    banded = mine & (hi - lo < width)
+    far = mine & ~banded
+    efc = np.concatenate((np.flatnonzero(banded), np.flatnonzero(far)))
+    kb = int(banded.sum())
+    k_of_row = np.full(nefc, -1)
+    for k in range(len(efc)):
+        k_of_row[efc[k]] = k
+    jw = np.zeros((kb, width))
+    jf = np.zeros((len(efc) - kb, n))
+    for p in range(len(row)):
+        k = k_of_row[row[p]]
+        loc = local_of_dof[col[p]]
+        if k < 0 or loc < 0:
+            continue
+        if k < kb:
+            jw[k, loc - lo[row[p]]] = val[p]
+        else:
+            jf[k - kb, loc] = val[p]
+    col0 = lo[efc[:kb]].copy()
+    return efc, kb, col0, jw, jf, ext

@@ -1,0 +1,181 @@
+"""Sweeps of the benchmark cases over backends and resolutions.
+
+:func:`sweep` runs every combination of cases x backends x n_edges x dt (x
+modes for derods) through :func:`derods.bench.run` and appends one JSON
+record per run to a results file as soon as it finishes: a crash or Ctrl-C
+loses nothing, and a re-run skips what the file already holds. Runs go through
+any ``concurrent.futures.Executor`` (``--workers N`` uses a process pool; a
+Dask or Ray executor spreads a large sweep over a cluster). Records from other
+environments (say, MuJoCo 3.17 for the cable) appended to the same file are
+merged into the same report (:mod:`derods.bench.report`).
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import dataclasses
+import json
+import os
+import pathlib
+import sys
+
+from . import cases as bench
+
+#: The fields that identify a run (a re-run with the same ones is skipped).
+KEY_FIELDS = ("case", "backend", "n_edges", "dt", "mode", "young", "length", "radius", "density")
+ACCURACY_CASES = ("cantilever", "frequency", "circle", "michell", "twist")
+
+
+@dataclasses.dataclass(frozen=True)
+class Job:
+    case: str
+    params: bench.CaseParams
+
+    def key(self) -> tuple:
+        p = self.params
+        mode = p.mode if p.backend == "der" else ("discrete" if p.backend == "flex" else "implicitfast")
+        return (self.case, p.backend, p.n_edges, float(p.dt), mode, float(p.young), float(p.length),
+                float(p.radius), float(p.density))
+
+
+def record_key(rec: dict) -> tuple:
+    return tuple(float(rec[k]) if isinstance(rec[k], (int, float)) and k not in ("n_edges",) else rec[k]
+                 for k in KEY_FIELDS)
+
+
+def load(path) -> list[dict]:
+    """Records of a results file (JSON lines); a torn last line from a crash is ignored."""
+    path = pathlib.Path(path)
+    if not path.exists():
+        return []
+    out = []
+    for line in path.read_text().splitlines():
+        try:
+            out.append(json.loads(line))
+        except json.JSONDecodeError:
+            continue
+    return out
+
+
+def available(backend: str) -> str | None:
+    """None if this MuJoCo can run ``backend``, else the message saying how to get it."""
+    try:
+        bench.CaseParams(backend=backend)
+    except ValueError as err:
+        return str(err)
+    return None
+
+
+def plan(cases, backends, n_edges, dts, modes=("implicit",), young=1e8, **params) -> list[Job]:
+    """Every supported combination as a list of jobs; a backend this MuJoCo lacks is
+    skipped with a message on stderr saying how to get it."""
+    usable = []
+    for backend in backends:
+        why = available(backend)
+        if why is None:
+            usable.append(backend)
+        else:
+            print(f"skipping backend {backend!r}: {why}", file=sys.stderr)
+    jobs = []
+    for case in cases:
+        for backend in usable:
+            if case not in bench.BACKEND_CASES.get(backend, ()):
+                continue
+            for n in n_edges:
+                for dt in dts:
+                    for mode in (modes if backend == "der" else ("implicit",)):
+                        p = bench.CaseParams(n_edges=n, dt=dt, young=young, mode=mode, backend=backend,
+                                             **params)
+                        jobs.append(Job(case, p))
+    return jobs
+
+
+#: The sample report's sweep: (cases, backends, n_edges, dts, extra parameters).
+ALL = ["der", "flex", "cable"]
+_RING = {"young": 1e7, "radius": 0.005, "shear": 5e6}
+FULL_PLAN = [
+    (["cantilever", "circle"], ALL, [10, 20, 50, 100, 200], [1e-2], {}),
+    (["frequency"], ALL, [10, 20, 50, 100], [1e-3], {}),
+    (["drop"], ALL, [20, 50], [2e-3, 1e-2], {"young": 1e7}),
+    (["michell"], ALL, [20, 50], [1e-3, 1e-2], _RING),
+    # The cable's O(n^3) step makes a 100-segment ring bisection take minutes at dt = 1e-3.
+    (["michell"], ["der", "flex"], [100], [1e-3, 1e-2], _RING),
+    (["extreme"], ALL, [50], [2e-3], {}),
+]
+STABILITY_E = [1e5, 1e7, 1e9, 1e11]
+STABILITY_DT = [1e-4, 1e-3, 1e-2, 2e-2]
+STABILITY_N = [10, 50, 200, 400]
+
+
+def full_plan(backends=("der", "flex")) -> list[Job]:
+    """Every run of the sample report for these backends: accuracy sweeps, the stability
+    map, extreme cases. (The cable runs in MuJoCo 3.17: ``backends=("cable",)`` there.)"""
+    jobs = []
+    for cases, plan_backends, ns, dts, extra in FULL_PLAN:
+        chosen = [b for b in plan_backends if b in backends]
+        jobs += plan(cases, chosen, ns, dts, **({"young": 1e8} | extra))
+    for young in STABILITY_E:
+        for backend in backends:
+            # The cable's dense joint chain costs O(n^3) per step: 12 ms at n = 200.
+            ns = [n for n in STABILITY_N if n <= 200] if backend == "cable" else STABILITY_N
+            jobs += plan(["stability"], [backend], ns, STABILITY_DT, young=young)
+    return jobs
+
+
+def _run(job: Job) -> list[dict]:
+    try:
+        return bench.run(job.case, job.params)
+    except Exception as err:  # a record of the failure is itself a result
+        p = job.params
+        return [{"case": job.case, "backend": p.backend, "n_edges": p.n_edges, "dt": p.dt,
+                 "mode": p.mode if p.backend == "der" else ("discrete" if p.backend == "flex" else "implicitfast"),
+                 "young": p.young, "length": p.length,
+                 "radius": p.radius, "density": p.density, "stable": False, "measured": None,
+                 "rel_error": None, "wall_s": 0.0, "note": f"{type(err).__name__}: {err}"}]
+
+
+def sweep(jobs: list[Job], results, executor: concurrent.futures.Executor | None = None,
+          progress: bool = True) -> int:
+    """Run the jobs not yet in ``results`` (a JSON-lines file), appending records as they finish.
+
+    executor: where to run them (default: in this process). Returns the number of runs made.
+    """
+    results = pathlib.Path(results)
+    if not results.parent.is_dir():
+        raise ValueError(f"results folder {str(results.parent)!r} does not exist; create it first")
+    done = {record_key(r) for r in load(results)}
+    todo = [j for j in jobs if j.key() not in done]
+    if progress:
+        print(f"{len(jobs) - len(todo)} of {len(jobs)} runs already in {results}; {len(todo)} to go",
+              file=sys.stderr)
+
+    def write(records):
+        # A crash may have left a torn last line: start on a fresh one.
+        if results.exists() and results.stat().st_size:
+            with open(results, "rb") as f:
+                f.seek(-1, os.SEEK_END)
+                torn = f.read(1) != b"\n"
+            if torn:
+                with open(results, "a") as f:
+                    f.write("\n")
+        with open(results, "a") as f:
+            for rec in records:
+                f.write(json.dumps(rec) + "\n")
+            f.flush()
+            os.fsync(f.fileno())
+
+    if executor is None:
+        for i, job in enumerate(todo):
+            write(_run(job))
+            if progress:
+                print(f"[{i + 1}/{len(todo)}] {job.case} {job.params.backend} n={job.params.n_edges} "
+                      f"dt={job.params.dt:g}", file=sys.stderr)
+    else:
+        futures = {executor.submit(_run, job): job for job in todo}
+        for i, fut in enumerate(concurrent.futures.as_completed(futures)):
+            write(fut.result())
+            if progress:
+                job = futures[fut]
+                print(f"[{i + 1}/{len(todo)}] {job.case} {job.params.backend} n={job.params.n_edges} "
+                      f"dt={job.params.dt:g}", file=sys.stderr)
+    return len(todo)

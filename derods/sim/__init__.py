@@ -1,0 +1,1 @@
+"""Rods in MuJoCo: the :class:`World` facade and the concerns behind it."""
