@@ -18,7 +18,7 @@ import numpy as np
 
 from . import _checks, energy, frames, geometry, stencil, twist
 from .energy import Configuration, Derivatives
-from .stencil import Hessian
+
 from .twist import TwistBoundary
 
 
@@ -127,7 +127,8 @@ class RodState:
 
 @dataclass
 class StepTerms:
-    """What one implicit step needs from a rod, from :meth:`Rod.step_terms`.
+    """What one implicit step needs from a rod, from :meth:`Rod.step_terms`; every field
+    is set on every path.
 
     state: the new state (frames transported, twist solved).
     energy: elastic energy [J], shape (...).
@@ -135,23 +136,21 @@ class StepTerms:
     hessian_banded: positive semi-definite Hessian of stretch + bending in the lower
         banded form of :func:`scipy.linalg.solveh_banded`, shape (..., 9, 3 n_vertices);
         for a ring, with its vertices in :func:`derods.stencil.ring_order` (where its
-        Hessian is banded), shape (..., RING_BANDWIDTH + 1, 3 n_vertices); None for
-        a batch of rings on the numpy path.
-    twist: the reduced twist term (:class:`derods.twist.ReducedTwist`), whose
-        Hessian c g g^T is a rank-one update of ``hessian_banded``; None without twist.
-    hessian: the same PSD Hessian per stencil (:class:`derods.stencil.Hessian`), from
-        the numpy path only (None from the compiled kernel).
-    grad_theta: dE/dtheta [N m] at the solved twist angles, where the rod does not
-        reduce its twist in closed form (zero on free angles; the clamps' moments).
+        Hessian is banded), shape (..., RING_BANDWIDTH + 1, 3 n_vertices).
+    twist: the reduced twist term (:class:`derods.twist.ReducedTwist`), whose Hessian
+        c g g^T is a rank-one update of ``hessian_banded``; zero (lam = c = 0, g = 0)
+        for a rod without the twist term, or whose twist is solved by Newton's method
+        (anisotropic or naturally curved rods: their twist stiffness is not rank one).
+    grad_theta: dE/dtheta [N m] at the solved twist angles, shape (..., n_edges): zero
+        on free angles; on the held end angles, the moments the clamps resist.
     """
 
     state: RodState
     energy: np.ndarray
     grad_x: np.ndarray
-    hessian_banded: np.ndarray | None
-    twist: twist.ReducedTwist | None
-    hessian: Hessian | None = None
-    grad_theta: np.ndarray | None = None
+    hessian_banded: np.ndarray
+    twist: twist.ReducedTwist
+    grad_theta: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -365,26 +364,51 @@ class Rod:
         t = frames.tangents(x, self.closed)
         u = frames.time_parallel_transport(state.u, state.t, t)
         cfg = Configuration(x, self.closed, u, state.theta)
-        red = None
-        theta = state.theta
         names = tuple(n for n in self.active_terms if n != "twist")
         d = self._terms(cfg, 2, True, names)
         grad, e = d.grad_x, d.energy
         if "twist" in self.active_terms:
             red = twist.reduce_isotropic(cfg, self.vlen, self.material.beta, bd, self.mbar)
-            theta = red.theta
             grad = grad + red.grad_x
             e = e + red.energy
-        return StepTerms(RodState(x, u, t, theta), e, grad, self._band(d.hessian), red, d.hessian)
+        else:
+            red = self._no_twist(np.broadcast_to(state.theta, t.shape[:-1]))
+        return StepTerms(RodState(x, u, t, red.theta), e, grad, self._band(d.hessian), red,
+                         self._clamp_moments(red.lam, bd, t.shape[:-1]))
 
-    def _band(self, hessian) -> np.ndarray | None:
+    def _no_twist(self, theta: np.ndarray) -> twist.ReducedTwist:
+        """A zero reduced twist term at angles ``theta`` (shape (..., n_edges))."""
+        batch = theta.shape[:-1]
+        zero = np.zeros(batch)
+        return twist.ReducedTwist(np.array(theta, dtype=float), zero, zero.copy(),
+                                  np.zeros(batch + (self.n_vertices, 3)), zero.copy())
+
+    def _clamp_moments(self, lam: np.ndarray, bd: TwistBoundary, shape: tuple) -> np.ndarray:
+        """dE/dtheta at the closed-form twist solution, shape (..., n_edges): zero on free
+        angles; -lam on the first and +lam on the last edge of a rod clamped at both ends."""
+        g = np.zeros(shape)
+        if bd.kind == "clamped":
+            g[..., 0] = -lam
+            g[..., -1] = lam
+        return g
+
+    def _band(self, hessian) -> np.ndarray:
         """The x-x Hessian's lower band: in vertex order for an open rod, in
-        :func:`derods.stencil.ring_order` for a ring (one ring, no batch)."""
+        :func:`derods.stencil.ring_order` for a ring."""
         if not self.closed:
             return hessian.xx_banded()
-        if self.rest_x.ndim > 2:
-            return None
-        return hessian.xx_banded_ordered(stencil.ring_order(self.n_vertices), stencil.RING_BANDWIDTH)
+        order = stencil.ring_order(self.n_vertices)
+        batch = self.rest_x.shape[:-2]
+        if not batch:
+            return hessian.xx_banded_ordered(order, stencil.RING_BANDWIDTH)
+        # One ring at a time (this is the numpy oracle of the compiled path).
+        out = []
+        blocks = {k: getattr(hessian, k) for k in ("edge_xx", "joint_xx", "joint_xt", "joint_tt")}
+        for idx in np.ndindex(*batch):
+            one = stencil.Hessian(hessian.n_vertices, True,
+                                  **{k: (None if v is None else v[idx]) for k, v in blocks.items()})
+            out.append(one.xx_banded_ordered(order, stencil.RING_BANDWIDTH))
+        return np.reshape(out, batch + out[0].shape)
 
     def _step_terms_material(self, state: RodState, x: np.ndarray, bd: TwistBoundary) -> StepTerms:
         """step_terms for anisotropic or naturally curved rods: Newton twist solve, then
@@ -396,52 +420,50 @@ class Rod:
         theta = self.solve_twist(RodState(x, u, t, state.theta), bd)
         cfg = Configuration(x, self.closed, u, theta)
         d = self._terms(cfg, 2, True, self.active_terms)
-        return StepTerms(RodState(x, u, t, theta), d.energy, d.grad_x, self._band(d.hessian), None, d.hessian,
-                         grad_theta=d.grad_theta)
+        return StepTerms(RodState(x, u, t, theta), d.energy, d.grad_x, self._band(d.hessian),
+                         self._no_twist(theta), d.grad_theta)
+
+    def _kernel_set(self, bd: TwistBoundary):
+        """This rod (or batch) as a :class:`derods.step.RodSet` for boundary ``bd`` (cached)."""
+        from .step import RodSet
+
+        cache = self.__dict__.setdefault("_kernel_sets", {})
+        if bd not in cache:
+            cache[bd] = RodSet.of([self], [bd])
+        return cache[bd]
 
     def _step_terms_kernel(self, state: RodState, x: np.ndarray, bd: TwistBoundary) -> StepTerms:
-        from ._numba import step as _kernels
+        from .step import EndBodies, Frames, Terms, evaluate
 
         batch = x.shape[:-2]
-        nv, ne, nj = self.n_vertices, self.n_edges, self.n_vertices - 2
-        def flat(a, *tail):
-            # (batch..., *tail) -> (n_rods, *tail) contiguous, copying only when needed.
-            a = np.asarray(a, dtype=float)
-            if a.shape == batch + tail:
-                return np.ascontiguousarray(a.reshape((-1,) + tail))
-            return np.ascontiguousarray(np.broadcast_to(a, batch + tail)).reshape((-1,) + tail)
+        nv, ne = self.n_vertices, self.n_edges
 
-        xs = flat(x, nv, 3)
-        n = xs.shape[0]
-        u, t, theta = np.empty((n, ne, 3)), np.empty((n, ne, 3)), np.empty((n, ne))
-        grad, g_tw = np.empty((n, nv, 3)), np.empty((n, nv, 3))
-        if self.closed:
-            nj = nv
-            pos = np.empty(nv, dtype=np.int64)
-            pos[stencil.ring_order(nv)] = np.arange(nv)
-            bandwidth = stencil.RING_BANDWIDTH
+        def flat(a, *tail):
+            # (batch..., *tail) -> (n_rods * tail[0], *tail[1:]) contiguous, copying always
+            # (the kernel writes the frames in place).
+            a = np.broadcast_to(np.asarray(a, dtype=float), batch + tail)
+            return np.array(a.reshape((-1,) + tail[1:]), dtype=float)
+
+        rods = self._kernel_set(bd)
+        n = rods.n_rods
+        fr = Frames(flat(state.u, ne, 3), flat(state.t, ne, 3), flat(state.theta, ne), np.zeros((n, 2)))
+        order = np.arange(nv) if not self.closed else np.argsort(stencil.ring_order(nv))
+        place = (order[None, :] + nv * np.arange(n)[:, None]).ravel().astype(np.int64)
+        rows = (stencil.RING_BANDWIDTH if self.closed else stencil.XX_BANDWIDTH) + 1
+        out = Terms.empty(n, n * nv, 3 * n * nv, rows)
+        evaluate(rods, fr, flat(x, nv, 3), place, out, EndBodies.none(n), np.zeros((1, 9)))
+        shape = lambda a, *tail: a.reshape(batch + tail)  # noqa: E731
+        band = np.ascontiguousarray(out.band.reshape(rows, n, 3 * nv).transpose(1, 0, 2))
+        theta = shape(fr.theta, ne)
+        if "twist" in self.active_terms:
+            e_tw = np.where(out.coef > 0, 0.5 * out.lam**2 / np.where(out.coef > 0, out.coef, 1.0), 0.0)
+            red = twist.ReducedTwist(theta, shape(out.lam), shape(e_tw), shape(out.g_tw, nv, 3),
+                                     shape(out.coef))
         else:
-            pos, bandwidth = np.arange(nv, dtype=np.int64), 8
-        ab = np.empty((n, bandwidth + 1, 3 * nv))
-        energy, lam, coef = np.empty(n), np.empty(n), np.empty(n)
-        clamped = bd.kind in ("clamped", "ring")  # both ends' frames held
-        anchor_last = (not self.closed and bd.kind == "free" and bd.theta_first is None
-                       and bd.theta_last is not None)
-        _kernels.step_batch(
-            xs, flat(state.u, ne, 3), flat(state.t, ne, 3), flat(self.rest_len, ne), flat(self.vlen, nj),
-            float(self.ks), float(self.material.alpha), float(self.material.beta), flat(self.mbar, nj),
-            self.closed, pos, clamped, anchor_last, float(bd.theta_first or 0.0), float(bd.theta_last or 0.0),
-            float(bd.total_twist), u, t, theta, grad, ab, g_tw, energy, lam, coef)
-        shape = lambda a: a.reshape(batch + a.shape[1:])  # noqa: E731
-        red = None
-        if "twist" not in self.active_terms:
-            # No twist term: theta is left as it was, as on the numpy path.
-            theta = flat(state.theta, ne)
-        else:
-            e_tw = 0.5 * lam**2 / coef if clamped else np.zeros(n)  # lam^2 sum(l/beta) / 4
-            red = twist.ReducedTwist(shape(theta), shape(lam), shape(e_tw), shape(g_tw), shape(coef))
-        return StepTerms(RodState(x, shape(u), shape(t), shape(theta)), shape(energy), shape(grad),
-                         shape(ab), red)
+            red = self._no_twist(theta)
+        return StepTerms(RodState(x, shape(fr.u, ne, 3), shape(fr.t, ne, 3), theta), shape(out.energy),
+                         shape(out.grad, nv, 3), shape(band, rows, 3 * nv), red,
+                         self._clamp_moments(red.lam, bd, batch + (ne,)))
 
     def energy(self, state: RodState) -> np.ndarray:
         """Total elastic energy [J], shape (...)."""

@@ -1,4 +1,4 @@
-"""Contact solved in the implicit metric (derods/contact.py)."""
+"""Contact solved in the implicit metric (derods/sim/contact.py, derods/_numba/contact.py)."""
 
 from __future__ import annotations
 
@@ -21,8 +21,8 @@ def small_problem(rng, n_vertices=6, n_rows=7, n_far=0):
     for d in range(9):
         k[d, : n - d] = np.diag(full, -d)
     k[0] += 5.0  # keep the banded part positive definite
-    system = ImplicitSystem(1e-2, np.array([0, n]), [k], [(rng.normal(size=n), 2.0)],
-                            rng.uniform(0.5, 1.5, size=n), 0.3, 1e-3)
+    system = ImplicitSystem.from_blocks(1e-2, np.array([0, n]), [k], [(rng.normal(size=n), 2.0)],
+                                        rng.uniform(0.5, 1.5, size=n), 0.3, 1e-3)
     col0 = rng.integers(0, n - 6, size=n_rows)
     jw = np.zeros((n_rows, 9))
     jw[:, :6] = rng.normal(size=(n_rows, 6))

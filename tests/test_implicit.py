@@ -1,4 +1,4 @@
-"""Banded linear algebra and the implicit step matrix of derods/implicit.py and derods/_kernels.py."""
+"""Banded linear algebra (derods/_numba/banded.py) and the implicit step matrix (derods/sim/implicit.py)."""
 
 from __future__ import annotations
 
@@ -65,7 +65,7 @@ def test_implicit_system_matches_dense_algebra():
     c = 3.0
     mass = rng.uniform(0.5, 2.0, size=21)
     offsets = np.array([0, 12, 21])
-    system = ImplicitSystem(h, offsets, [band1, band2], [(g, c), None], mass, am, b)
+    system = ImplicitSystem.from_blocks(h, offsets, [band1, band2], [(g, c), None], mass, am, b)
     k = np.zeros((21, 21))
     k[:12, :12] = k1 + c * np.outer(g, g)
     k[12:, 12:] = k2

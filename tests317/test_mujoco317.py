@@ -71,7 +71,7 @@ def test_free_cable_lies_where_asked():
 
     p = CaseParams(n_edges=50, dt=2e-3, backend="cable")
     x = shapes.straight(p.length, p.n_edges, start=(-0.5, 0.0, 0.3), direction=(1.0, 0.0, 0.3))
-    cable = bench.cases._free_rod(p, x, "floor")
+    cable = p.build.free_rod(p, x, "floor")
     np.testing.assert_allclose(cable.positions(), x, atol=1e-6)
 
 

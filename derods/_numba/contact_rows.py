@@ -176,3 +176,53 @@ def split_rows(row, col, val, local_of_dof, supported, force, n, width):
             jf[k - kb, loc] = val[p]
     col0 = lo[efc[:kb]].copy()
     return efc, kb, col0, jw, jf, ext
+
+
+@nb.njit(cache=True)
+def efc_triplets(is_sparse, nefc, nv, efc_j, rownnz, rowadr, colind):
+    """(row, col, value) of every nonzero of MuJoCo's constraint Jacobian efc_J, sparse
+    (CSR: rownnz, rowadr, colind) or dense (nefc x nv, row-major)."""
+    if is_sparse:
+        return sparse_triplets(rownnz[:nefc], rowadr[:nefc], colind, efc_j)
+    total = 0
+    for p in range(nefc * nv):
+        if efc_j[p] != 0.0:
+            total += 1
+    row = np.empty(total, dtype=np.int64)
+    col = np.empty(total, dtype=np.int64)
+    val = np.empty(total)
+    q = 0
+    for p in range(nefc * nv):
+        if efc_j[p] != 0.0:
+            row[q] = p // nv
+            col[q] = p % nv
+            val[q] = efc_j[p]
+            q += 1
+    return row, col, val
+
+
+@nb.njit(cache=True)
+def apply_rows(col0, jw, jf, a):
+    """J a over banded rows (first) and far rows, shape (k_b + k_f,)."""
+    kb = len(col0)
+    out = np.empty(kb + jf.shape[0])
+    out[:kb] = rows_apply(col0, jw, a)
+    for r in range(jf.shape[0]):
+        acc = 0.0
+        for j in range(jf.shape[1]):
+            acc += jf[r, j] * a[j]
+        out[kb + r] = acc
+    return out
+
+
+@nb.njit(cache=True)
+def transpose_apply_rows(col0, jw, jf, lam, n):
+    """J^T lam over banded and far rows, shape (n,)."""
+    kb = len(col0)
+    out = rows_transpose_apply(col0, jw, lam[:kb], n)
+    for r in range(jf.shape[0]):
+        lr = lam[kb + r]
+        if lr != 0.0:
+            for j in range(n):
+                out[j] += jf[r, j] * lr
+    return out

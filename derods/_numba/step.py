@@ -1,17 +1,20 @@
-"""Compiled (numba) kernel for the per-step work of isotropic, naturally straight rods.
+"""Compiled mirror of :mod:`derods.step`: one step's terms for a set of isotropic,
+naturally straight rods of any sizes, in one call.
 
-One call does, for every rod of a batch, what the numpy path of
-:meth:`derods.rod.Rod.step_terms` does with several dozen array operations:
-transport the reference frames in time, solve the quasistatic twist, and
-evaluate the gradient and the positive semi-definite banded Hessian of
-stretch + isotropic bending + the reduced twist. At a few hundred vertices a
-numpy call costs more in overhead than in arithmetic; this kernel removes
-that overhead. Open rods and rings share one loop: edge j joins vertices j
-and j + 1 (mod n on a ring); joint k joins edges k, k + 1 of an open rod and
-k - 1, k of a ring (:func:`derods.geometry.joint_pairs`). The band is written
-with the vertices in a given order (identity for open rods,
-:func:`derods.stencil.ring_order` for rings). tests/test_kernels.py checks it
-against the numpy path, which in turn is checked against finite differences.
+For every rod: transport the reference frames in time, turn the frames of
+clamps held by moving bodies, solve the quasistatic twist, and evaluate the
+gradient and the positive semi-definite banded Hessian of stretch + isotropic
+bending + the reduced twist. At a few hundred vertices a numpy call costs
+more in overhead than in arithmetic; this kernel removes that overhead, and
+one call serves every rod of a world (rods are laid end to end in flat
+arrays, see :class:`derods.step.RodSet`).
+
+Open rods and rings share one loop: edge j joins vertices j and j + 1 (mod n
+on a ring); joint k joins edges k, k + 1 of an open rod and k - 1, k of a ring
+(:func:`derods.geometry.joint_pairs`). The Hessian is written into one lower
+band over the places given by ``place`` (a vertex's place in the solve order,
+-1 for a vertex that is held and has no dofs). tests/test_step.py checks this
+kernel against the numpy path, which is checked against finite differences.
 
 Formulas and conventions are those of :mod:`derods.energy`,
 :mod:`derods.frames` and :mod:`derods.twist`; the lower banded layout is that
@@ -29,13 +32,17 @@ from ..geometry import CHI_MIN
 
 
 @nb.njit(cache=True, inline="always")
-def _add(ab, pos, vi, vj, r, c, v):
-    """Add v to H[3 vi + r, 3 vj + c] of a symmetric matrix kept as its lower band, with
-    vertex vi at place pos[vi] of the solve order. Of a diagonal block (vi == vj) only the
-    lower triangle is added; an off-diagonal block lands in the lower half, transposed if
-    its vertices come in the other order (each such block is added for one order only)."""
-    row = 3 * pos[vi] + r
-    col = 3 * pos[vj] + c
+def _add(ab, place, vi, vj, r, c, v):
+    """Add v to H[3 p_i + r, 3 p_j + c] of a symmetric matrix kept as its lower band,
+    p = place[v] the vertex's place in the solve order (nothing for a held vertex,
+    place -1). Of a diagonal block (vi == vj) only the lower triangle is added; an
+    off-diagonal block lands in the lower half, transposed if its vertices come in the
+    other order (each such block is added for one order only)."""
+    pi_, pj = place[vi], place[vj]
+    if pi_ < 0 or pj < 0:
+        return
+    row = 3 * pi_ + r
+    col = 3 * pj + c
     if row < col:
         if vi == vj:
             return
@@ -46,15 +53,20 @@ def _add(ab, pos, vi, vj, r, c, v):
 
 
 @nb.njit(cache=True)
-def _step_one(x, u_prev, t_prev, rest_len, vlen, ks, alpha, beta, mbar, closed, pos, clamped, anchor_last,
-              theta_first, theta_last, total_twist, u, t, theta, grad, ab, g_tw, ref, le, ja, jb, hab):
+def _rod_step(x, u, t, theta, rest_len, vlen, mbar, ks, alpha, beta, closed, has_twist, clamped, anchor_last,
+              theta_first, theta_last, total_twist, clamp_body, clamp_dir, theta_end, xmat, place, grad, ab,
+              g_tw, ref, le, ja, jb, hab):
+    """One rod (arrays are this rod's slices; u, t, theta updated in place). Returns
+    (energy [J], twisting moment lam [N m], twist stiffness c [N m], largest |strain|)."""
     nv = x.shape[0]
     ne = nv if closed else nv - 1
     nj = nv if closed else nv - 2
     energy = 0.0
-    grad[:] = 0.0
-    ab[:] = 0.0
-    g_tw[:] = 0.0
+    max_strain = 0.0
+    for i in range(nv):
+        for a in range(3):
+            grad[i, a] = 0.0
+            g_tw[i, a] = 0.0
     # Edges: tangents, time-parallel transport of the reference frames, stretching.
     for j in range(ne):
         jn = (j + 1) % nv
@@ -64,13 +76,13 @@ def _step_one(x, u_prev, t_prev, rest_len, vlen, ks, alpha, beta, mbar, closed, 
         lj = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
         le[j] = lj
         c0, c1, c2 = e0 / lj, e1 / lj, e2 / lj
+        p0, p1, p2 = t[j, 0], t[j, 1], t[j, 2]
         t[j, 0], t[j, 1], t[j, 2] = c0, c1, c2
-        p0, p1, p2 = t_prev[j, 0], t_prev[j, 1], t_prev[j, 2]
         k0, k1, k2 = p1 * c2 - p2 * c1, p2 * c0 - p0 * c2, p0 * c1 - p1 * c0
         s0, s1, s2 = p0 + c0, p1 + c1, p2 + c2
         opc = max(0.5 * (s0 * s0 + s1 * s1 + s2 * s2), CHI_MIN)
         cc = opc - 1.0
-        w0, w1, w2 = u_prev[j, 0], u_prev[j, 1], u_prev[j, 2]
+        w0, w1, w2 = u[j, 0], u[j, 1], u[j, 2]
         kw = (k0 * w0 + k1 * w1 + k2 * w2) / opc
         v0 = cc * w0 + (k1 * w2 - k2 * w1) + k0 * kw
         v1 = cc * w1 + (k2 * w0 - k0 * w2) + k1 * kw
@@ -80,6 +92,9 @@ def _step_one(x, u_prev, t_prev, rest_len, vlen, ks, alpha, beta, mbar, closed, 
         nvv = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
         u[j, 0], u[j, 1], u[j, 2] = v0 / nvv, v1 / nvv, v2 / nvv
         strain = lj / rest_len[j] - 1.0
+        # NaN compares false: a NaN strain becomes the "largest" so the check sees it.
+        if not abs(strain) <= max_strain:
+            max_strain = abs(strain) if abs(strain) == abs(strain) else np.inf
         energy += 0.5 * ks * rest_len[j] * strain * strain
         ten = ks * strain
         for a in range(3):
@@ -90,10 +105,29 @@ def _step_one(x, u_prev, t_prev, rest_len, vlen, ks, alpha, beta, mbar, closed, 
         for r in range(3):
             for c in range(3):
                 h = (kt - kg) * t[j, r] * t[j, c] + (kg if r == c else 0.0)
-                _add(ab, pos, j, j, r, c, h)
-                _add(ab, pos, jn, jn, r, c, h)
-                _add(ab, pos, jn, j, r, c, -h)
-    # Joints: isotropic bending and the reference twist with its gradient.
+                _add(ab, place, j, j, r, c, h)
+                _add(ab, place, jn, jn, r, c, h)
+                _add(ab, place, jn, j, r, c, -h)
+    # Clamps on moving bodies: the clamped edge's material director turns with its body;
+    # its angle from the transported reference director, unwrapped over many turns.
+    for end in range(2):
+        b = clamp_body[end]
+        if b < 0:
+            continue
+        edge = 0 if end == 0 else ne - 1
+        d0 = xmat[b, 0] * clamp_dir[end, 0] + xmat[b, 1] * clamp_dir[end, 1] + xmat[b, 2] * clamp_dir[end, 2]
+        d1 = xmat[b, 3] * clamp_dir[end, 0] + xmat[b, 4] * clamp_dir[end, 1] + xmat[b, 5] * clamp_dir[end, 2]
+        d2 = xmat[b, 6] * clamp_dir[end, 0] + xmat[b, 7] * clamp_dir[end, 1] + xmat[b, 8] * clamp_dir[end, 2]
+        w0, w1, w2 = u[edge, 0], u[edge, 1], u[edge, 2]
+        sin_ = (w1 * d2 - w2 * d1) * t[edge, 0] + (w2 * d0 - w0 * d2) * t[edge, 1] + (w0 * d1 - w1 * d0) * t[edge, 2]
+        angle = math.atan2(sin_, w0 * d0 + w1 * d1 + w2 * d2)
+        prev = theta_end[end]
+        theta_end[end] = prev + (angle - prev + np.pi) % (2 * np.pi) - np.pi
+        if end == 0:
+            theta_first = theta_end[end]
+        else:
+            theta_last = theta_end[end]
+    # Joints: isotropic bending, and the reference twist with its gradient.
     for k in range(nj):
         # Edges ea, eb meet at vertex vm between vertices va and vn.
         if closed:
@@ -152,12 +186,14 @@ def _step_one(x, u_prev, t_prev, rest_len, vlen, ks, alpha, beta, mbar, closed, 
         for r in range(3):
             for c in range(3):
                 haa, hab_, hba, hbb = hab[r, c], hab[r, c + 3], hab[r + 3, c], hab[r + 3, c + 3]
-                _add(ab, pos, va, va, r, c, haa)
-                _add(ab, pos, vm, vm, r, c, haa - hab_ - hba + hbb)
-                _add(ab, pos, vn, vn, r, c, hbb)
-                _add(ab, pos, vm, va, r, c, hba - haa)
-                _add(ab, pos, vn, vm, r, c, hba - hbb)
-                _add(ab, pos, vn, va, r, c, -hba)
+                _add(ab, place, va, va, r, c, haa)
+                _add(ab, place, vm, vm, r, c, haa - hab_ - hba + hbb)
+                _add(ab, place, vn, vn, r, c, hbb)
+                _add(ab, place, vm, va, r, c, hba - haa)
+                _add(ab, place, vn, vm, r, c, hba - hbb)
+                _add(ab, place, vn, va, r, c, -hba)
+        if not has_twist:
+            continue
         # Reference twist: angle from the transport of u^k (ta -> tb) to u^{k+1} about tb.
         w0, w1, w2 = u[ea, 0], u[ea, 1], u[ea, 2]
         q0, q1, q2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
@@ -175,10 +211,12 @@ def _step_one(x, u_prev, t_prev, rest_len, vlen, ks, alpha, beta, mbar, closed, 
             g_tw[va, c] -= kbv[c] * ia
             g_tw[vm, c] += kbv[c] * (ia - ib)
             g_tw[vn, c] += kbv[c] * ib
-    # Quasistatic twist (closed form, see derods.twist.solve_isotropic): theta of edge eb
-    # follows theta of edge ea by d_k + mbar_k - ref_k across joint k (not across a ring's seam).
     lam = 0.0
     coef = 0.0
+    if not has_twist:
+        return energy, lam, coef, max_strain
+    # Quasistatic twist (closed form, see derods.twist.solve_isotropic): theta of edge eb
+    # follows theta of edge ea by d_k + mbar_k - ref_k across joint k (not across a ring's seam).
     if clamped:
         excess = total_twist if closed else theta_last - theta_first
         compliance = 0.0
@@ -204,27 +242,48 @@ def _step_one(x, u_prev, t_prev, rest_len, vlen, ks, alpha, beta, mbar, closed, 
         for k in range(1 if closed else 0, nj):
             eb = k if closed else k + 1
             theta[eb] = theta[eb - 1] + mbar[k] - ref[k]
-    return energy, lam, coef
+    return energy, lam, coef, max_strain
 
 
 @nb.njit(cache=True)
-def step_batch(x, u_prev, t_prev, rest_len, vlen, ks, alpha, beta, mbar, closed, pos, clamped, anchor_last,
-               theta_first, theta_last, total_twist, u, t, theta, grad, ab, g_tw, energy, lam, coef):
-    """Run :func:`_step_one` over rods stacked on axis 0 (outputs filled in place).
-
-    closed: rings. clamped: both ends' material frames held (for a ring: its total twist
-    ``total_twist`` [rad] imposed). pos: place of each vertex in the band's order,
-    shape (n_vertices,)."""
-    n_rods, nv = x.shape[0], x.shape[1]
-    ref = np.empty(nv)
-    le = np.empty(nv)
+def rods_step(x, v_off, e_off, j_off, rest_len, vlen, mbar, ks, alpha, beta, compiled, closed, has_twist, clamped,
+              anchor_last, theta_first, theta_last, total_twist, clamp_body, clamp_dir, theta_end, xmat,
+              place, u, t, theta, grad, ab, g_tw, energy, lam, coef, strain):
+    """Every rod of a set, laid end to end (see :class:`derods.step.RodSet` for the
+    per-rod arguments). In: positions x (n_vertices, 3) [m]; the previous frames u, t
+    (n_edges, 3) and twist angles theta (n_edges,), updated in place; theta_end (n_rods, 2)
+    [rad], the unwrapped angles of clamps on moving bodies, updated in place; xmat
+    (n_bodies, 9), MuJoCo's body orientations. Out: grad (n_vertices, 3) [N]; ab, the
+    lower band of the PSD Hessian over the places ``place`` (n_vertices,) [N/m], zeroed
+    here first; g_tw (n_vertices, 3) [1/m], the reduced twist term's direction; energy,
+    lam, coef, strain per rod. Returns the first rod whose largest |strain| is not
+    finite or exceeds ``strain`` on entry, else -1 (strain (n_rods,): limit in, value out)."""
+    n_rods = len(v_off) - 1
+    max_nv = 0
+    for i in range(n_rods):
+        max_nv = max(max_nv, v_off[i + 1] - v_off[i])
+    ref = np.empty(max_nv)
+    le = np.empty(max_nv)
     ja = np.empty((3, 3))
     jb = np.empty((3, 3))
     hab = np.empty((6, 6))
+    ab[:] = 0.0
+    first_bad = -1
     for i in range(n_rods):
-        e, lm, cf = _step_one(x[i], u_prev[i], t_prev[i], rest_len[i], vlen[i], ks, alpha, beta,
-                              mbar[i], closed, pos, clamped, anchor_last, theta_first, theta_last,
-                              total_twist, u[i], t[i], theta[i], grad[i], ab[i], g_tw[i], ref, le, ja, jb, hab)
+        if not compiled[i]:
+            continue
+        v0, v1 = v_off[i], v_off[i + 1]
+        e0, e1 = e_off[i], e_off[i + 1]
+        j0, j1 = j_off[i], j_off[i + 1]
+        e, lm, cf, st = _rod_step(
+            x[v0:v1], u[e0:e1], t[e0:e1], theta[e0:e1], rest_len[e0:e1], vlen[j0:j1], mbar[j0:j1], ks[i],
+            alpha[i], beta[i], closed[i], has_twist[i], clamped[i], anchor_last[i], theta_first[i],
+            theta_last[i], total_twist[i], clamp_body[i], clamp_dir[i], theta_end[i], xmat, place[v0:v1],
+            grad[v0:v1], ab, g_tw[v0:v1], ref, le, ja, jb, hab)
         energy[i] = e
         lam[i] = lm
         coef[i] = cf
+        if first_bad < 0 and not st <= strain[i]:
+            first_bad = i
+        strain[i] = st
+    return first_bad

@@ -38,7 +38,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import pathlib
 import platform
 import sys
 import time
@@ -48,14 +47,17 @@ import mujoco
 import numpy as np
 
 from .. import reference, shapes
-from . import native
 from ..rod import Material, Rod
+from ..sim.divergence import DivergenceError
+from ..sim.world import World
 from ..twist import TwistBoundary
-from ..sim.world import ContactParams, DivergenceError, World
+from . import native
+from .backends import BACKENDS as _BACKENDS
+from .backends import RodSimulator
 
-MJCF_DIR = pathlib.Path(__file__).resolve().parents[2] / "mjcf"
+MJCF_DIR = native.MJCF_DIR
 CASES = ("cantilever", "frequency", "drop", "michell", "circle", "twist", "stability", "extreme")
-BACKENDS = ("der", "flex", "cable")
+BACKENDS = tuple(_BACKENDS)
 #: Cases each backend can run.
 BACKEND_CASES = {"der": ("cantilever", "frequency", "drop", "michell", "circle", "twist", "stability",
                          "extreme"),
@@ -79,7 +81,7 @@ class CaseParams:
     n_edges: edges of the rod. dt: time step [s]. young: E [Pa]. shear: G [Pa]
     (None: from poisson). length [m], radius [m], density [kg/m^3], gravity
     [m/s^2] (magnitude, pointing down). mode: "implicit", "explicit" or "projection".
-    backend: "der" (MuJoCo's native rods arrive with the comparison tools).
+    backend: "der", or MuJoCo's native "flex" or "cable" (:mod:`derods.bench.backends`).
     """
 
     n_edges: int = 20
@@ -97,12 +99,9 @@ class CaseParams:
     def __post_init__(self):
         if self.backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, got {self.backend!r}")
-        if self.backend == "flex" and not native.has_flex_elasticity():
-            raise ValueError(f"backend 'flex' needs MuJoCo >= 3.17 (1D flex elasticity); this is "
-                             f"{mujoco.__version__}: pip install -U mujoco")
-        if self.backend == "cable" and not native.has_cable():
-            raise ValueError(f"backend 'cable' needs MuJoCo 3.x (the cable plugin was removed in 4.0; this "
-                             f"is {mujoco.__version__}); make venv317, then run with .venv317/bin/python")
+        missing = _BACKENDS[self.backend].requirement()
+        if missing:
+            raise ValueError(missing)
         if self.mode not in ("implicit", "explicit", "projection"):
             raise ValueError(f"mode must be 'implicit', 'explicit' or 'projection', got {self.mode!r}")
         if int(self.n_edges) != self.n_edges or self.n_edges < 2:
@@ -118,8 +117,13 @@ class CaseParams:
         return Material(young=self.young, density=self.density, radius=self.radius,
                         shear=self.shear, poisson=self.poisson)
 
+    @property
+    def build(self):
+        """How this run's backend builds its rods (:class:`derods.bench.backends.Backend`)."""
+        return _BACKENDS[self.backend]
 
-def _record(case: str, p: CaseParams, world: World | None, measured, ref, stable: bool,
+
+def _record(case: str, p: CaseParams, world: RodSimulator | None, measured, ref, stable: bool,
             wall: float, **extra) -> dict:
     steps = world.n_steps if world is not None else 0
     mat = p.material
@@ -130,7 +134,7 @@ def _record(case: str, p: CaseParams, world: World | None, measured, ref, stable
         "mujoco_version": mujoco.__version__,
         "n_edges": p.n_edges,
         "dt": p.dt,
-        "mode": p.mode if p.backend == "der" else ("discrete" if p.backend == "flex" else "implicitfast"),
+        "mode": p.build.mode(p),
         "young": p.young,
         "shear": mat.shear_modulus,
         "length": p.length,
@@ -157,36 +161,12 @@ def _first_mode_rate(p: CaseParams) -> float:
     return max(w1, math.sqrt(p.gravity / p.length) if p.gravity else 0.0)
 
 
-def _cantilever_world(p: CaseParams, gravity: float, damping: float):
-    """A rod clamped at (0, 0, 1) m along +x, in the chosen backend.
-
-    Returns (world, rest vertex positions [m]). derods puts the clamp at the middle
-    of the first edge (:func:`derods.shapes.cantilever`); the native flexcomp pins
-    the first edge of a rod starting at the clamp, as a MuJoCo user would.
-    """
-    if p.backend == "der":
-        x = shapes.cantilever(p.length, p.n_edges, start=(0.0, 0.0, 1.0))
-        return _clamped_rod(p, x, gravity, damping), x
-    x = shapes.straight(p.length, p.n_edges, start=(0.0, 0.0, 1.0))
-    if p.backend == "cable":
-        # The cable's own damping (joint damping 0.01 E I / h, implicit) replaces mass damping.
-        return native.cable_rod(p, gravity=(0.0, 0.0, -gravity)), x
-    return _clamped_rod(p, x, gravity, damping), x
-
-
-def _vertex_body(world, i: int) -> int:
-    """MuJoCo body id of vertex i of the benchmark's rod, in any backend."""
-    if isinstance(world, native.NativeRod):
-        return native.body_of_vertex(world, min(i, len(world.body_ids) - 1))
-    return world.model.body(f"rod_{i}").id
-
-
 def cantilever(p: CaseParams, max_time: float = 30.0) -> list[dict]:
     """Static tip drop of a horizontal cantilever under its weight (REFERENCE.md case 2)."""
     mat = p.material
     ref = reference.cantilever_elastica(mat.line_density * p.gravity, p.length, mat.alpha)["tip_drop"]
     # Mass-proportional damping at 0.7 of critical on the slowest mode settles it fastest.
-    world, _ = _cantilever_world(p, p.gravity, 1.4 * _first_mode_rate(p))
+    world, _ = p.build.cantilever(p, p.gravity, 1.4 * _first_mode_rate(p))
     chunk = max(1, int(round(0.1 / p.dt)))
     t0 = time.perf_counter()
     stable, measured, note = True, None, ""
@@ -208,7 +188,7 @@ def frequency(p: CaseParams, periods: int = 4) -> list[dict]:
     """First bending frequency of a clamped-free rod (REFERENCE.md case 4), no gravity."""
     mat = p.material
     ref = reference.cantilever_frequency(mat.alpha, mat.line_density, p.length)
-    world, rest_x = _cantilever_world(p, 0.0, 0.0)
+    world, rest_x = p.build.cantilever(p, 0.0, 0.0)
     # Start from the static shape under a uniform load (97 % first mode), tip at 1 % of L,
     # keeping the clamped edge straight.
     s = np.clip(rest_x[:, 0], 0.0, None)
@@ -216,7 +196,7 @@ def frequency(p: CaseParams, periods: int = 4) -> list[dict]:
     shape[:2] = 0.0
     x0 = rest_x.copy()
     x0[:, 2] += 0.01 * p.length * shape / shape[-1]
-    world.set_positions("rod", x0)
+    world.set_positions(0, x0)
     n_steps = int(math.ceil(periods / ref / p.dt))
     z = np.empty(n_steps)
     t0 = time.perf_counter()
@@ -244,7 +224,7 @@ def drop(p: CaseParams, sim_time: float = 3.0, mass_damping: float = 2.0) -> lis
         x -= x.mean(axis=0)
         # Centred 0.5 m above the floor; across the box, centred on its +x edge (x = 0.15).
         x += (0.15, 0.0, 0.7) if scene == "box_edge" else (0.0, 0.0, 0.5)
-        world = _free_rod(p, x, scene, mass_damping)
+        world = p.build.free_rod(p, x, "box" if scene == "box_edge" else scene, mass_damping)
         t0 = time.perf_counter()
         stable, note = True, ""
         first_contact, deepest_late, deepest, rest_at = None, 0.0, 0.0, None
@@ -282,24 +262,7 @@ def _out_of_plane(x: np.ndarray) -> float:
     return float(np.linalg.svd(c, compute_uv=False)[-1] / math.sqrt(len(x)))
 
 
-def _twisted_ring(p: CaseParams, total_twist: float, self_contact: bool = False):
-    """A naturally straight ring (:func:`derods.native.ring_vertices`) with total twist
-    ``total_twist`` [rad], without gravity, in the chosen backend. derods closes the rod
-    itself (with self-contact if asked); the native rings are open rods whose last edge is
-    held on their clamped first (see :mod:`derods.native`), which leaves Michell's threshold
-    unchanged, and never touch themselves."""
-    if p.backend == "flex":
-        return native.flex_ring(p, total_twist)
-    if p.backend == "cable":
-        return native.cable_ring(p, total_twist)
-    world = World(dt=p.dt, gravity=(0.0, 0.0, 0.0), mode=p.mode,
-                  contact=ContactParams(self_collision=self_contact))
-    world.add_rod(Rod(native.ring_vertices(p), p.material, closed=True, natural_curvature=False,
-                      boundary=TwistBoundary("ring", total_twist=total_twist)), "ring")
-    return world
-
-
-def ring_buckles(p: CaseParams, total_twist: float, perturbation: float = 1e-3) -> tuple[bool, World]:
+def ring_buckles(p: CaseParams, total_twist: float, perturbation: float = 1e-3) -> tuple[bool, RodSimulator]:
     """Whether a twisted ring leaves its plane. The circle is bent out of plane by
     ``perturbation`` times its radius R (modes 2 and 3) and run for up to 40 bending
     times R^2 sqrt(rho A / alpha). It has buckled if it leaves its plane by more than
@@ -313,18 +276,18 @@ def ring_buckles(p: CaseParams, total_twist: float, perturbation: float = 1e-3) 
     0.3 s at dt = 1e-2, 1.1e-4 R at 1e-3, 1.2e-6 R at 1e-4."""
     mat = p.material
     radius = p.length / (2 * math.pi)
-    world = _twisted_ring(p, total_twist)
+    world = p.build.twisted_ring(p, total_twist)
     x = native.ring_vertices(p)
     phi = 2 * math.pi * np.arange(p.n_edges) / p.n_edges
     xp = x.copy()
     xp[:, 2] += perturbation * radius * (np.sin(2 * phi) + 0.1 * np.cos(3 * phi))
-    world.set_positions("ring", xp)
+    world.set_positions(0, xp)
     t_bend = radius**2 * math.sqrt(mat.line_density / mat.alpha)
     chunk = max(1, int(round(t_bend / p.dt)))
     bend = []
     for _ in range(40):
         world.step(chunk)
-        bend.append(_out_of_plane(world.positions("ring")))
+        bend.append(_out_of_plane(world.positions()))
         if bend[-1] > BUCKLED * radius:
             return True, world
     return max(bend[30:]) > 1.02 * max(bend[20:30]), world
@@ -366,28 +329,18 @@ def circle(p: CaseParams, max_time: float = 300.0) -> list[dict]:
     """A clamped rod curled by the end couple 2 pi alpha / L (REFERENCE.md case 3)."""
     mat = p.material
     moment = 2 * math.pi * mat.alpha / p.length
-    world, _ = _cantilever_world(p, 0.0, 10.0)
-    tip = _vertex_body(world, p.n_edges)
-    pre = _vertex_body(world, p.n_edges - 1)
+    world, _ = p.build.cantilever(p, 0.0, 10.0)
     t0 = time.perf_counter()
     stable, note, measured = True, "", None
     try:
         while world.time < max_time:
             for _ in range(50):
-                # A couple on the last edge, in the xz plane, following the edge as it turns.
-                if isinstance(world, native.CableRod):
-                    # A couple is a torque on the last segment (-y curls the rod upwards).
-                    world.data.xfrc_applied[tip, 3:] = (0.0, -moment, 0.0)
-                else:
-                    x = world.positions("rod")
-                    e = x[-1] - x[-2]
-                    force = moment / float(e @ e) * np.array([-e[2], 0.0, e[0]])
-                    world.data.xfrc_applied[tip, :3] = force
-                    world.data.xfrc_applied[pre, :3] = -force
+                # A couple on the last edge, following it as it turns (how depends on the backend).
+                p.build.end_couple(world, moment)
                 world.step()
-            if np.max(np.abs(world.velocities("rod"))) < SETTLE_SPEED * p.length:
+            if np.max(np.abs(world.velocities())) < SETTLE_SPEED * p.length:
                 break
-        measured = float(np.linalg.norm(world.positions("rod")[-1] - (0.0, 0.0, 1.0)) / p.length)
+        measured = float(np.linalg.norm(world.positions()[-1] - (0.0, 0.0, 1.0)) / p.length)
     except DivergenceError as err:
         stable, note = False, str(err)
     wall = time.perf_counter() - t0
@@ -453,9 +406,9 @@ def stability(p: CaseParams, steps: int = 300) -> list[dict]:
     no damping, with a 1e-6 m/s random start (symmetric rods hide their instabilities).
     Unstable: divergence reported (NaN, BADQACC, runaway speed), an edge stretched by
     more than 50 %, or the tip farther than 1.5 L from the clamp. measured: 1 stable, 0 not."""
-    world, rest_x = _cantilever_world(p, p.gravity, 0.0)
+    world, rest_x = p.build.cantilever(p, p.gravity, 0.0)
     rng = np.random.default_rng(0)
-    dofs = world.dofs if isinstance(world, native.NativeRod) else world._dofs
+    dofs = world.dofs()
     world.data.qvel[dofs] = rng.normal(scale=1e-6, size=len(dofs))
     t0 = time.perf_counter()
     stable, note = True, ""
@@ -482,7 +435,7 @@ def extreme(p: CaseParams) -> list[dict]:
     itself (bend radius 2 r) released; edge ratio: a cantilever whose second edge is
     1000 times shorter than the others; ring 20 turns: a ring twisted 20 full turns
     (far above Michell's threshold), which writhes; derods has self-contact on, the
-    native rings have none (see :func:`_twisted_ring`): "penetrated" if two
+    native rings have none (see :mod:`derods.bench.backends`): "penetrated" if two
     non-neighbouring parts of the rod come closer than r.
     """
     out = []
@@ -502,17 +455,13 @@ def extreme(p: CaseParams) -> list[dict]:
             if name in ("soft", "steel_wire"):
                 q = dataclasses.replace(p, young=1e4) if name == "soft" else dataclasses.replace(
                     p, young=2e11, radius=5e-4, density=7850.0)
-                world, rest_x = _cantilever_world(q, q.gravity, 1.0)
+                world, rest_x = q.build.cantilever(q, q.gravity, 1.0)
                 world.step(int(round(2.0 / q.dt)))
             elif name == "impact":
                 x = shapes.straight(q.length, q.n_edges, start=(-0.5 * q.length, 0.0, 0.3),
                                     direction=(1.0, 0.0, 0.3))
-                world = _free_rod(q, x, "floor")
-                if isinstance(world, native.CableRod):
-                    world.data.qvel[:3] = (0.0, 0.0, -20.0)  # the root's free joint carries the cable
-                else:
-                    dofs = world.dofs if isinstance(world, native.NativeRod) else world._dofs
-                    world.data.qvel[dofs] = np.tile([0.0, 0.0, -20.0], len(dofs) // 3)
+                world = q.build.free_rod(q, x, "floor")
+                world.set_velocities(0, np.tile([0.0, 0.0, -20.0], (len(x), 1)))
                 deepest = 0.0
                 for _ in range(int(round(0.5 / q.dt))):
                     world.step()
@@ -527,23 +476,23 @@ def extreme(p: CaseParams) -> list[dict]:
                 x = np.stack([np.where(s < q.length / 2, s, q.length - s), np.zeros_like(s),
                               np.where(s < q.length / 2, 0.0, 2 * bend)], axis=1) + (0.0, 0.0, 0.5)
                 x[k] += (0.0, 0.0, bend)
-                world = _free_rod(q, x, None)
+                world = q.build.free_rod(q, x, None)
                 world.step(int(round(1.0 / q.dt)))
             elif name == "edge_ratio":
                 x = shapes.straight(q.length, q.n_edges, start=(0.0, 0.0, 1.0))
                 x[2] = x[1] + (x[2] - x[1]) * 1e-3
-                world = _clamped_rod(q, x, q.gravity, 0.0)
+                world = q.build.clamped_rod(q, x, q.gravity, 0.0)
                 world.step(int(round(1.0 / q.dt)))
             else:  # ring_20_turns
-                world = _twisted_ring(q, 40 * math.pi, self_contact=True)
+                world = q.build.twisted_ring(q, 40 * math.pi, self_contact=True)
                 xp = native.ring_vertices(q)
                 xp[:, 2] += 1e-3 * np.sin(2 * np.linspace(0, 2 * math.pi, q.n_edges, endpoint=False))
-                world.set_positions("ring", xp)
+                world.set_positions(0, xp)
                 gap = math.inf
                 for _ in range(int(round(1.0 / q.dt)) // 5):  # watch for the ring passing through itself
                     world.step(5)
                     t_watch = time.perf_counter()
-                    gap = min(gap, _closest_approach(world.positions("ring"), q.length / q.n_edges))
+                    gap = min(gap, _closest_approach(world.positions(), q.length / q.n_edges))
                     watching += time.perf_counter() - t_watch
                 note = (f"closest approach of non-neighbouring parts {1000 * gap:.1f} mm "
                         f"(r = {1000 * q.radius:g} mm)")
@@ -576,41 +525,6 @@ def _closest_approach(x: np.ndarray, spacing: float, samples: int = 8) -> float:
     sep = np.minimum(sep, total - sep)  # along a closed loop
     dist = np.linalg.norm(pts[:, None, :] - pts[None, :, :], axis=-1)
     return float(dist[sep > 3 * spacing].min())
-
-
-#: The drop scenes: derods loads the MJCF file, the native backends get the same geoms inline.
-_SCENES = {
-    "floor": ("floor.xml", '<geom type="plane" size="3 3 0.1"/>'),
-    "box_edge": ("box.xml", '<geom type="plane" size="3 3 0.1"/>'
-                            '<geom type="box" size="0.15 0.15 0.1" pos="0 0 0.1"/>'),
-}
-
-
-def _free_rod(p: CaseParams, x: np.ndarray, scene: str | None, mass_damping: float = 0.0):
-    """A naturally straight free rod at ``x`` [m] in ``scene`` ("floor", "box_edge" or None
-    for empty space), in the chosen backend (the cable brings its own damping)."""
-    path, geoms = _SCENES[scene] if scene else (None, "")
-    if p.backend == "cable":
-        return native.cable_rod(p, clamped=False, start=x[0], direction=x[-1] - x[0], scene_body=geoms)
-    if p.backend == "flex":
-        rod, _ = native.flex_rod(x, p, scene_body=geoms, mass_damping=mass_damping)
-        return rod
-    world = World(MJCF_DIR / path if path else None, dt=p.dt, gravity=(0.0, 0.0, -p.gravity),
-                  mode=p.mode, mass_damping=mass_damping)
-    world.add_rod(Rod(x, p.material, natural_curvature=False), "rod")
-    world.compile()
-    return world
-
-
-def _clamped_rod(p: CaseParams, x: np.ndarray, gravity: float, damping: float):
-    """A rod at ``x`` [m] whose first edge is clamped, in derods or the native flexcomp."""
-    if p.backend == "flex":
-        rod, _ = native.flex_rod(x, p, pinned=(0, 1), gravity=(0.0, 0.0, -gravity), mass_damping=damping)
-        return rod
-    world = World(dt=p.dt, gravity=(0.0, 0.0, -gravity), mode=p.mode, mass_damping=damping)
-    world.add_rod(Rod(x, p.material), "rod", start="clamp")
-    world.compile()
-    return world
 
 
 RUNNERS = {"cantilever": cantilever, "frequency": frequency, "drop": drop, "michell": michell,

@@ -10,11 +10,18 @@ Backends:
   ``<composite type="cable">``); MuJoCo 4.0 removed it, so it runs only in an
   environment with mujoco 3.17 (see the README for the one command that makes it).
 
+Models are composed with ``mujoco.MjSpec``: the rod's own element (flexcomp
+and composite are MJCF macros that MjSpec has no builder for) is written as one
+XML element with ElementTree and expanded by MuJoCo's parser; options, the
+scene (the same MJCF files derods uses, attached) and the ring closures are
+set through the spec.
+
 Parameter mapping (a careful user's settings; pitfalls measured in the native
 rod baselines):
 
 * length L, radius r, n edges: flexcomp ``type="direct"`` with points i L / n
-  (``type="grid"`` refuses spacing <= radius), ``radius=r``.
+  (``type="grid"`` refuses spacing <= radius), ``radius=r``; point coordinates
+  written with 9 significant digits.
 * density rho: total ``mass = rho pi r^2 L`` (flexcomp spreads it evenly over
   the n + 1 points, pinned ones included).
 * E, G: ``young=E``, ``poisson = E / (2 G) - 1``, which flexcomp requires in
@@ -27,22 +34,30 @@ rod baselines):
 * damping: mass-proportional, ``dof_damping = a m_vertex`` on the vertex dofs
   (implicit under ``discrete``), the same a [1/s] as derods' mass_damping.
 
-The cable (:func:`cable_xml`): the same vertices as an explicit ``vertex``
+The cable (:func:`cable_spec`): the same vertices as an explicit ``vertex``
 list, ``bend=E``, ``twist=G``, ``flat="true"`` (naturally straight), geom mass
 rho A h per segment, no self-collision, ``initial="none"`` for a clamp, joint damping 0.01 E I / h,
 ``implicitfast``. Twisted rings for Michell's case: see the comment above
 :class:`FlexRing`.
+
+Each rod class implements the harness's protocol
+(:class:`derods.bench.backends.RodSimulator`).
 """
 
 from __future__ import annotations
 
 import math
+import pathlib
+import xml.etree.ElementTree as ET
 
 import mujoco
 import numpy as np
 
 from .. import frames, shapes
-from ..sim.divergence import MAX_SPEED, DivergenceError
+from ..sim.divergence import Diagnosis, check_mujoco
+
+#: derods' scenes, which the native rods are dropped into too.
+MJCF_DIR = pathlib.Path(__file__).resolve().parents[2] / "mjcf"
 
 
 def has_flex_elasticity() -> bool:
@@ -61,10 +76,6 @@ def has_cable() -> bool:
     return int(mujoco.__version__.split(".")[0]) < 4
 
 
-def _compiled(xml: str | mujoco.MjModel) -> mujoco.MjModel:
-    return mujoco.MjModel.from_xml_string(xml) if isinstance(xml, str) else xml
-
-
 def poisson_for(young: float, shear: float) -> tuple[float, bool]:
     """flexcomp's Poisson ratio for E and G, clipped to [0, 0.4999]; (nu, clipped)."""
     nu = young / (2.0 * shear) - 1.0
@@ -72,66 +83,96 @@ def poisson_for(young: float, shear: float) -> tuple[float, bool]:
     return clipped, clipped != nu
 
 
-def flex_xml(points: np.ndarray, radius: float, mass: float, young: float, poisson: float,
-             closed: bool = False, pinned=(), dt: float = 1e-2, gravity=(0.0, 0.0, -9.81),
-             scene_body: str = "", contact_solref=(0.005, 1.0)) -> str:
-    """MJCF of one flexcomp rod (plus optional scene geoms in ``scene_body``)."""
+def _numbers(values, fmt: str = "{:.9g}") -> str:
+    return " ".join(fmt.format(float(v)) for v in np.ravel(values))
+
+
+def _macro_spec(element: ET.Element, extension: str | None = None) -> mujoco.MjSpec:
+    """A spec holding one MJCF macro element (flexcomp, composite) in its worldbody,
+    expanded by MuJoCo's parser (MjSpec has no builder for macros)."""
+    root = ET.Element("mujoco")
+    if extension:
+        ET.SubElement(ET.SubElement(root, "extension"), "plugin", plugin=extension)
+    ET.SubElement(root, "compiler", angle="radian")
+    ET.SubElement(root, "worldbody").append(element)
+    return mujoco.MjSpec.from_string(ET.tostring(root, encoding="unicode"))
+
+
+def _compose(spec: mujoco.MjSpec, integrator, dt: float, gravity, scene: str | None) -> mujoco.MjSpec:
+    """Set the spec's options and attach a scene of mjcf/ (its geoms, prefixed "scene_")."""
+    spec.option.integrator = integrator
+    spec.option.timestep = dt
+    spec.option.gravity = np.asarray(gravity, dtype=float)
+    if scene is not None:
+        spec.attach(mujoco.MjSpec.from_file(str(MJCF_DIR / f"{scene}.xml")), frame=spec.worldbody.add_frame(),
+                    prefix="scene_")
+    return spec
+
+
+def flex_spec(points: np.ndarray, radius: float, mass: float, young: float, poisson: float,
+              closed: bool = False, pinned=(), dt: float = 1e-2, gravity=(0.0, 0.0, -9.81),
+              scene: str | None = None, contact_solref=(0.005, 1.0)) -> mujoco.MjSpec:
+    """One flexcomp rod (named "rod") through ``points`` [m] (n + 1, 3), in a scene of mjcf/."""
     n = len(points) if closed else len(points) - 1
-    pts = " ".join(f"{v:.9g}" for v in np.asarray(points).ravel())
-    elem = " ".join(f"{i} {(i + 1) % len(points)}" for i in range(n))
-    pin = f'<pin id="{" ".join(str(i) for i in pinned)}"/>' if len(pinned) else ""
-    g = " ".join(f"{v:g}" for v in gravity)
-    return f"""<mujoco>
-  <option timestep="{dt}" integrator="discrete" gravity="{g}"/>
-  <worldbody>
-    {scene_body}
-    <flexcomp name="rod" type="direct" dim="1" point="{pts}" element="{elem}" radius="{radius}"
-              mass="{mass}" rgba="0.2 0.6 0.85 1">
-      {pin}
-      <edge equality="true" solref="0.0001 1"/>
-      <contact selfcollide="none" condim="3" solref="{contact_solref[0]} {contact_solref[1]}"/>
-      <elasticity young="{young}" poisson="{poisson}" damping="0"/>
-    </flexcomp>
-  </worldbody>
-</mujoco>"""
+    elem = np.column_stack([np.arange(n), (np.arange(n) + 1) % len(points)])
+    flex = ET.Element("flexcomp", name="rod", type="direct", dim="1", point=_numbers(points),
+                      element=" ".join(str(int(i)) for i in elem.ravel()), radius=repr(float(radius)),
+                      mass=repr(float(mass)), rgba="0.2 0.6 0.85 1")
+    if len(pinned):
+        ET.SubElement(flex, "pin", id=" ".join(str(i) for i in pinned))
+    ET.SubElement(flex, "edge", equality="true", solref="0.0001 1")
+    ET.SubElement(flex, "contact", selfcollide="none", condim="3", solref=_numbers(contact_solref, "{!r}"))
+    ET.SubElement(flex, "elasticity", young=repr(float(young)), poisson=repr(float(poisson)), damping="0")
+    return _compose(_macro_spec(flex), mujoco.mjtIntegrator.mjINT_DISCRETE, dt, gravity, scene)
 
 
 class NativeRod:
-    """One native flexcomp rod in its own MuJoCo model, with the World methods the
-    benchmark cases use (step, positions, velocities, set_positions, time)."""
+    """A native MuJoCo rod (one flexcomp) in its own model; the harness's protocol
+    (:class:`derods.bench.backends.RodSimulator`). ``rod`` arguments are accepted and
+    ignored: the model holds one rod."""
 
-    def __init__(self, xml: str | mujoco.MjModel, mass_damping: float = 0.0):
-        self.model = _compiled(xml)
+    def __init__(self, model: mujoco.MjModel, mass_damping: float = 0.0):
+        self.model = model
         self.data = mujoco.MjData(self.model)
         m = self.model
         adr, num = m.flex_vertadr[0], m.flex_vertnum[0]
         self.body_ids = m.flex_vertbodyid[adr:adr + num]
         self.free = np.array([m.body_dofnum[b] > 0 for b in self.body_ids])
-        self.dofs = np.concatenate([m.body_dofadr[b] + np.arange(3) for b in self.body_ids[self.free]])
+        self._dofs = np.concatenate([m.body_dofadr[b] + np.arange(3) for b in self.body_ids[self.free]])
         if mass_damping:
             for b in self.body_ids[self.free]:
                 m.dof_damping[m.body_dofadr[b]:m.body_dofadr[b] + 3] = mass_damping * m.body_mass[b]
         self.n_steps = 0
         self._badqacc = 0
+        self._diagnosis = Diagnosis([self.label])
         mujoco.mj_forward(m, self.data)
 
+    label = "native flex"
     active_terms = {"rod": ("native",)}
 
     @property
     def time(self) -> float:
         return float(self.data.time)
 
-    def positions(self, name=None) -> np.ndarray:
+    def dofs(self, rod=0) -> np.ndarray:
+        """MuJoCo dofs that carry the rod."""
+        return self._dofs
+
+    def vertex_body(self, rod, vertex: int) -> int:
+        """MuJoCo body id of a vertex (for xfrc_applied)."""
+        return int(self.body_ids[vertex])
+
+    def positions(self, rod=0) -> np.ndarray:
         # flexvert_xpos covers pinned vertices too (their "body" is the world).
         adr, num = self.model.flex_vertadr[0], self.model.flex_vertnum[0]
         return self.data.flexvert_xpos[adr:adr + num].copy()
 
-    def velocities(self, name=None) -> np.ndarray:
+    def velocities(self, rod=0) -> np.ndarray:
         v = np.zeros((len(self.body_ids), 3))
-        v[self.free] = self.data.qvel[self.dofs].reshape(-1, 3)
+        v[self.free] = self.data.qvel[self._dofs].reshape(-1, 3)
         return v
 
-    def set_positions(self, name, x: np.ndarray) -> None:
+    def set_positions(self, rod, x: np.ndarray) -> None:
         m, d = self.model, self.data
         for i, b in enumerate(self.body_ids):
             if self.free[i]:
@@ -140,29 +181,17 @@ class NativeRod:
         d.qvel[:] = 0.0
         mujoco.mj_forward(m, d)
 
+    def set_velocities(self, rod, v: np.ndarray) -> None:
+        self.data.qvel[self._dofs] = np.asarray(v, dtype=float)[self.free].ravel()
+
     def step(self, n_steps: int = 1) -> None:
         for _ in range(n_steps):
             mujoco.mj_step(self.model, self.data)
             self.n_steps += 1
-            self._check()
-
-    def _check(self) -> None:
-        d = self.data
-        bad = d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
-        v = d.qvel[self.dofs]
-        speed = np.max(np.abs(v)) if len(v) else 0.0
-        if bad != self._badqacc or not speed <= MAX_SPEED:
-            self._badqacc = bad
-            what = "MuJoCo reported bad accelerations (BADQACC)" if bad else f"vertex speed {speed:.3g} m/s"
-            raise DivergenceError(f"native rod diverged at step {self.n_steps} (t = {d.time:.6g} s): {what}")
+            self._badqacc = check_mujoco(self.data, self._dofs, self._badqacc, self._diagnosis, self.n_steps)
 
 
-def body_of_vertex(rod: NativeRod, i: int) -> int:
-    """MuJoCo body id of vertex i (for xfrc_applied)."""
-    return int(rod.body_ids[i])
-
-
-def flex_rod(points: np.ndarray, p, pinned=(), gravity=None, closed: bool = False, scene_body: str = "",
+def flex_rod(points: np.ndarray, p, pinned=(), gravity=None, closed: bool = False, scene: str | None = None,
              mass_damping: float = 0.0) -> tuple[NativeRod, dict]:
     """A native flexcomp rod for the benchmark parameters ``p`` (:class:`derods.bench.CaseParams`).
 
@@ -170,18 +199,16 @@ def flex_rod(points: np.ndarray, p, pinned=(), gravity=None, closed: bool = Fals
     """
     mat = p.material
     nu, clipped = poisson_for(mat.young, mat.shear_modulus)
-    length = p.length
-    mass = mat.density * math.pi * mat.radius**2 * length
+    mass = mat.density * math.pi * mat.radius**2 * p.length
     grav = (0.0, 0.0, -p.gravity) if gravity is None else gravity
-    xml = flex_xml(points, mat.radius, mass, mat.young, nu, closed, pinned, p.dt, grav, scene_body)
-    notes = {"poisson": nu, "poisson_clipped": clipped}
-    return NativeRod(xml, mass_damping), notes
+    spec = flex_spec(points, mat.radius, mass, mat.young, nu, closed, pinned, p.dt, grav, scene)
+    return NativeRod(spec.compile(), mass_damping), {"poisson": nu, "poisson_clipped": clipped}
 
 
-def cable_xml(vertices: np.ndarray, radius: float, density: float, young: float, shear: float,
-              clamped: bool = True, dt: float = 1e-2, gravity=(0.0, 0.0, -9.81), joint_damping: float = 0.0,
-              scene_body: str = "") -> str:
-    """MJCF of a MuJoCo 3.x cable (``<composite type="cable">`` with the elasticity plugin).
+def cable_spec(vertices: np.ndarray, radius: float, density: float, young: float, shear: float,
+               clamped: bool = True, dt: float = 1e-2, gravity=(0.0, 0.0, -9.81), joint_damping: float = 0.0,
+               scene: str | None = None) -> mujoco.MjSpec:
+    """A MuJoCo 3.x cable (``<composite type="cable">`` with the elasticity plugin).
 
     vertices: (n + 1, 3) [m], equally spaced; one segment body per edge.
     ``geom mass = rho A h`` per segment (the default density would add the capsules'
@@ -197,53 +224,50 @@ def cable_xml(vertices: np.ndarray, radius: float, density: float, young: float,
     vertices = np.asarray(vertices, dtype=float)
     h = float(np.linalg.norm(vertices[1] - vertices[0]))
     seg_mass = density * math.pi * radius**2 * h
-    pts = " ".join(f"{v:.12g}" for v in vertices.ravel())
-    g = " ".join(f"{v:g}" for v in gravity)
-    return f"""<mujoco>
-  <extension><plugin plugin="mujoco.elasticity.cable"/></extension>
-  <compiler angle="radian"/>
-  <option timestep="{dt}" integrator="implicitfast" gravity="{g}"/>
-  <worldbody>
-    {scene_body}
-      <composite prefix="c" type="cable" vertex="{pts}" initial="{'none' if clamped else 'free'}">
-        <plugin plugin="mujoco.elasticity.cable">
-          <config key="twist" value="{shear}"/>
-          <config key="bend" value="{young}"/>
-          <config key="vmax" value="0"/>
-          <config key="flat" value="true"/>
-        </plugin>
-        <joint kind="main" damping="{joint_damping}"/>
-        <geom type="capsule" size="{radius}" mass="{seg_mass}" rgba="0.85 0.55 0.2 1" condim="3"
-              contype="2" conaffinity="1"/>
-      </composite>
-  </worldbody>
-</mujoco>"""
+    comp = ET.Element("composite", prefix="c", type="cable", vertex=_numbers(vertices, "{:.12g}"),
+                      initial="none" if clamped else "free")
+    plugin = ET.SubElement(comp, "plugin", plugin="mujoco.elasticity.cable")
+    for key, value in (("twist", repr(float(shear))), ("bend", repr(float(young))), ("vmax", "0"), ("flat", "true")):
+        ET.SubElement(plugin, "config", key=key, value=value)
+    ET.SubElement(comp, "joint", kind="main", damping=repr(float(joint_damping)))
+    ET.SubElement(comp, "geom", type="capsule", size=repr(float(radius)), mass=repr(float(seg_mass)),
+                  rgba="0.85 0.55 0.2 1", condim="3", contype="2", conaffinity="1")
+    spec = _macro_spec(comp, extension="mujoco.elasticity.cable")
+    return _compose(spec, mujoco.mjtIntegrator.mjINT_IMPLICITFAST, dt, gravity, scene)
 
 
 class CableRod(NativeRod):
-    """A MuJoCo 3.x cable with the World methods the benchmark cases use.
+    """A MuJoCo 3.x cable; the harness's protocol.
 
     Vertices are the segment bodies' origins plus the tip site; velocities are the
-    linear velocities of those points.
+    linear velocities of those points. The cable's dofs are its joints (a free or
+    welded root and ball joints), not vertex positions.
     """
 
-    def __init__(self, xml: str | mujoco.MjModel):
-        self.model = _compiled(xml)
+    label = "native cable"
+
+    def __init__(self, model: mujoco.MjModel):
+        self.model = model
         self.data = mujoco.MjData(self.model)
         m = self.model
         names = [m.body(i).name for i in range(m.nbody)]
         self.body_ids = np.array([i for i, nm in enumerate(names) if nm.startswith("cB_")])
         self.tip_site = m.site("cS_last").id
-        self.dofs = np.arange(m.nv)
+        self._dofs = np.arange(m.nv)
         self.free = np.ones(len(self.body_ids) + 1, dtype=bool)
         self.n_steps = 0
         self._badqacc = 0
+        self._diagnosis = Diagnosis([self.label])
         mujoco.mj_forward(m, self.data)
 
-    def positions(self, name=None) -> np.ndarray:
+    def vertex_body(self, rod, vertex: int) -> int:
+        """The segment body that starts at a vertex (the last segment for the tip)."""
+        return int(self.body_ids[min(vertex, len(self.body_ids) - 1)])
+
+    def positions(self, rod=0) -> np.ndarray:
         return np.concatenate([self.data.xpos[self.body_ids], self.data.site_xpos[[self.tip_site]]])
 
-    def velocities(self, name=None) -> np.ndarray:
+    def velocities(self, rod=0) -> np.ndarray:
         m, d = self.model, self.data
         out = np.zeros((len(self.body_ids) + 1, 3))
         res = np.zeros(6)
@@ -254,7 +278,18 @@ class CableRod(NativeRod):
         out[-1] = res[3:]
         return out
 
-    def set_positions(self, name, x: np.ndarray) -> None:
+    def set_velocities(self, rod, v: np.ndarray) -> None:
+        """A free cable moving as a whole: every row of v (n + 1, 3) [m/s] equal, given to
+        the root's free joint (a cable's vertices cannot move independently)."""
+        v = np.asarray(v, dtype=float)
+        if not np.allclose(v, v[0]):
+            raise ValueError("a cable's vertex velocities can only be set as one translation (all rows equal)")
+        m = self.model
+        if m.jnt_type[0] != mujoco.mjtJoint.mjJNT_FREE:
+            raise ValueError("only a free cable (not clamped) can be given a velocity")
+        self.data.qvel[:3] = v[0]
+
+    def set_positions(self, rod, x: np.ndarray) -> None:
         """Bend a clamped cable into the shape of ``x`` (its n + 1 vertices [m]), at rest.
 
         A cable's shape lives in its ball joints: the segments take the directions of
@@ -306,7 +341,7 @@ def _cable_damping(mat, h: float, joint_damping_time: float) -> float:
 
 
 def cable_rod(p, clamped: bool = True, gravity=None, start=(0.0, 0.0, 1.0), direction=(1.0, 0.0, 0.0),
-              joint_damping_time: float = 0.01, scene_body: str = "") -> CableRod:
+              joint_damping_time: float = 0.01, scene: str | None = None) -> CableRod:
     """A cable for the benchmark parameters ``p``; joint damping = beta_d E I / h with
     beta_d = ``joint_damping_time`` [s] (stiffness-proportional, implicit: the cable
     needs it to be stable at large steps)."""
@@ -315,9 +350,9 @@ def cable_rod(p, clamped: bool = True, gravity=None, start=(0.0, 0.0, 1.0), dire
     grav = (0.0, 0.0, -p.gravity) if gravity is None else gravity
     damping = _cable_damping(mat, p.length / p.n_edges, joint_damping_time)
     x = shapes.straight(p.length, p.n_edges, start, direction)
-    xml = cable_xml(x, mat.radius, mat.density, mat.young, mat.shear_modulus, clamped, p.dt, grav, damping,
-                    scene_body)
-    return CableRod(xml)
+    spec = cable_spec(x, mat.radius, mat.density, mat.young, mat.shear_modulus, clamped, p.dt, grav, damping,
+                      scene)
+    return CableRod(spec.compile())
 
 
 # --- Twisted rings (the ``michell`` case) -------------------------------------------------------
@@ -375,19 +410,19 @@ class FlexRing(NativeRod):
         # Edge k's twist angle: rod_twist_k, the last edge's rod_twist; the clamped edge 0 has none.
         names = [f"rod_twist_{k}" for k in range(1, n)] + ["rod_twist"]
         self._twist_qpos = np.array([model.joint(nm).qposadr[0] for nm in names])
-        self.set_positions(None, self.rest)
+        self.set_positions(0, self.rest)
 
-    def positions(self, name=None) -> np.ndarray:
+    def positions(self, rod=0) -> np.ndarray:
         return super().positions()[:len(self.rest)]
 
-    def velocities(self, name=None) -> np.ndarray:
+    def velocities(self, rod=0) -> np.ndarray:
         return super().velocities()[:len(self.rest)]
 
-    def set_positions(self, name, x: np.ndarray) -> None:
+    def set_positions(self, rod, x: np.ndarray) -> None:
         """Place the ring at ``x`` (n, 3) [m] at rest, twisted evenly; x's first two rows
         (the clamped edge) are ignored."""
         n = len(self.rest)
-        super().set_positions(name, _ring_layout(self.rest, x))
+        super().set_positions(rod, _ring_layout(self.rest, x))
         self.data.qpos[self._twist_qpos] = self.total_twist * np.arange(1, n + 1) / n
         mujoco.mj_forward(self.model, self.data)
 
@@ -405,8 +440,7 @@ def flex_ring(p, total_twist: float) -> FlexRing:
     line = rest[0] + np.arange(n + 2)[:, None] * (rest[1] - rest[0])  # straight, edge length h
     nu, _ = poisson_for(mat.young, mat.shear_modulus)
     mass = mat.density * math.pi * mat.radius**2 * h * (n + 2)  # rho A h per point
-    spec = mujoco.MjSpec.from_string(flex_xml(line, mat.radius, mass, mat.young, nu, pinned=(0, 1),
-                                              dt=p.dt, gravity=(0.0, 0.0, 0.0)))
+    spec = flex_spec(line, mat.radius, mass, mat.young, nu, pinned=(0, 1), dt=p.dt, gravity=(0.0, 0.0, 0.0))
     for i, target in ((n, rest[0]), (n + 1, rest[1])):
         for axis, joint in enumerate(spec.body(f"rod_{i}").joints):  # three slides along x, y, z
             joint.name = f"close_{i}_{axis}"
@@ -431,15 +465,15 @@ class CableRing(CableRod):
         super().__init__(model)
         self.rest = np.asarray(rest, dtype=float)
         self.total_twist = float(total_twist)
-        self.set_positions(None, self.rest)
+        self.set_positions(0, self.rest)
 
-    def positions(self, name=None) -> np.ndarray:
+    def positions(self, rod=0) -> np.ndarray:
         return self.data.xpos[self.body_ids[:len(self.rest)]].copy()
 
-    def velocities(self, name=None) -> np.ndarray:
+    def velocities(self, rod=0) -> np.ndarray:
         return super().velocities()[:len(self.rest)]
 
-    def set_positions(self, name, x: np.ndarray) -> None:
+    def set_positions(self, rod, x: np.ndarray) -> None:
         """Place the ring at ``x`` (n, 3) [m] at rest, twisted evenly; x's first two rows
         (the clamped segment) are ignored."""
         n = len(self.rest)
@@ -453,9 +487,8 @@ def cable_ring(p, total_twist: float, joint_damping_time: float = 0.01) -> Cable
     mat = p.material
     rest = ring_vertices(p)
     damping = _cable_damping(mat, float(np.linalg.norm(rest[1] - rest[0])), joint_damping_time)
-    xml = cable_xml(np.concatenate([rest, rest[:2]]), mat.radius, mat.density, mat.young, mat.shear_modulus,
-                    clamped=True, dt=p.dt, gravity=(0.0, 0.0, 0.0), joint_damping=damping)
-    spec = mujoco.MjSpec.from_string(xml)
+    spec = cable_spec(np.concatenate([rest, rest[:2]]), mat.radius, mat.density, mat.young, mat.shear_modulus,
+                      clamped=True, dt=p.dt, gravity=(0.0, 0.0, 0.0), joint_damping=damping)
     for geom in spec.geoms:  # the last segment overlaps the first: no contacts in the ring
         geom.contype = geom.conaffinity = 0
     first = spec.body("cB_first")  # a child of the world: its quat is its orientation

@@ -16,7 +16,7 @@ import platform
 import time
 from collections import defaultdict
 
-from .sweep import ACCURACY_CASES, load
+from .sweep import ACCURACY_CASES, STABILITY_DT, load
 
 def _series(records):
     """Records grouped by (case, backend, mode, dt) -> sorted by n."""

@@ -19,6 +19,11 @@ iteration. Rows that touch distant parts of a rod (self-contact, as in a knot)
 or two rods enter the Newton step as a low-rank update. Rows that couple a rod
 to other moving bodies, and elliptic-cone rows, keep the force MuJoCo's own
 solver computed for them in the same step.
+
+Per step, one compiled call (:func:`derods._numba.contact.contact_step`) does it
+all: split MuJoCo's rows, rescale their weights to the implicit metric
+(:meth:`Rows.rescale`), and run Newton's method (:func:`solve`). :class:`Rows`
+and :func:`solve` expose the same arithmetic to tests and to other callers.
 """
 
 from __future__ import annotations
@@ -28,14 +33,20 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from .._numba.contact_rows import (exact_line_search, rows_apply, rows_band, rows_diag, rows_transpose_apply,
-                       sparse_triplets, split_rows)
-from .implicit import ImplicitSystem
+from .._numba import contact as _k
+from .._numba.contact_rows import apply_rows, rows_band, transpose_apply_rows
 from ..stencil import XX_BANDWIDTH
+from .implicit import ImplicitSystem
 
-_W = XX_BANDWIDTH + 1  # width of a row's dof window that keeps the Hessian banded
-_SUPPORTED = (int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL),
-              int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS))
+#: Width of a row's dof window that keeps the Hessian banded.
+WINDOW = XX_BANDWIDTH + 1
+#: The constraint types derods re-solves (MuJoCo's pyramidal and frictionless contacts).
+SUPPORTED = np.array([int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL),
+                      int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS)])
+#: Newton's method: iteration cap, and the tolerance on the gradient relative to the
+#: problem's force scale.
+MAX_ITER = 30
+TOL = 1e-10
 
 
 @dataclass
@@ -52,7 +63,7 @@ class Rows:
     r_over_diag: MuJoCo's R / diagA, shape (k,) (see :meth:`rescale`).
     col0: first local dof of each banded row's window, shape (k_b,), int64.
     jw: banded rows' Jacobian entries in their windows, shape (k_b, 9).
-    jf: far rows' Jacobians over all local dofs, shape (k_f, n).
+    jf: far rows' Jacobians over all local dofs, shape (k_f, n) (k_f may be 0).
     """
 
     col0: np.ndarray
@@ -63,6 +74,10 @@ class Rows:
     r_over_diag: np.ndarray | None = None
     jf: np.ndarray | None = None
 
+    def __post_init__(self):
+        if self.jf is None:
+            self.jf = np.zeros((0, 0))
+
     def __len__(self) -> int:
         return len(self.efc)
 
@@ -70,20 +85,17 @@ class Rows:
     def n_banded(self) -> int:
         return len(self.col0)
 
+    def _jf(self, n: int) -> np.ndarray:
+        return self.jf if self.jf.shape[0] else np.zeros((0, n))
+
     def apply(self, a: np.ndarray) -> np.ndarray:
         """J a for every row, shape (k,)."""
-        out = rows_apply(self.col0, self.jw, np.ascontiguousarray(a, dtype=float))
-        if self.jf is not None:
-            out = np.concatenate([out, self.jf @ a])
-        return out
+        a = np.ascontiguousarray(a, dtype=float)
+        return apply_rows(self.col0, self.jw, self._jf(len(a)), a)
 
     def transpose_apply(self, lam: np.ndarray, n: int) -> np.ndarray:
         """J^T lam, shape (n,)."""
-        kb = self.n_banded
-        out = rows_transpose_apply(self.col0, self.jw, np.ascontiguousarray(lam[:kb], dtype=float), n)
-        if self.jf is not None:
-            out = out + self.jf.T @ lam[kb:]
-        return out
+        return transpose_apply_rows(self.col0, self.jw, self._jf(n), np.ascontiguousarray(lam, dtype=float), n)
 
     def band(self, weights: np.ndarray, n: int) -> np.ndarray:
         """Lower band (9, n) of J_b^T diag(weights) J_b over the banded rows."""
@@ -100,13 +112,9 @@ class Rows:
         whose diagonal needs, for banded rows, only the entries of A^-1 inside
         the band, and for far rows one solve each.
         """
-        zb, corrections = system.inverse_diagonal_terms()
-        diag_a = rows_diag(self.col0, self.jw, zb)
-        for zvec, w in corrections:
-            diag_a -= w * rows_apply(self.col0, self.jw, zvec) ** 2
-        if self.jf is not None:
-            diag_a = np.concatenate([diag_a, np.einsum("kn,nk->k", self.jf, system.solve(self.jf.T))])
-        self.d = 1.0 / (self.r_over_diag * diag_a)
+        diag = _k.delassus_diagonal(system.lb, system.g, system.tw_lo, system.tw_hi, system.tw_c, system.s,
+                                    system.z, system.den, self.col0, self.jw, self._jf(system.n))
+        self.d = 1.0 / (self.r_over_diag * diag)
 
 
 def rod_rows(model: mujoco.MjModel, data: mujoco.MjData, local_of_dof: np.ndarray,
@@ -116,72 +124,71 @@ def rod_rows(model: mujoco.MjModel, data: mujoco.MjData, local_of_dof: np.ndarra
     local_of_dof: local index of every MuJoCo dof in the rods' free dofs, -1 elsewhere, (nv,).
     n: number of local dofs. Returns (rows or None, external force [N] on the local dofs (n,)).
     """
+    from .._numba.contact_rows import efc_triplets, split_rows
+
     nefc = data.nefc
     if nefc == 0:
         return None, np.zeros(n)
-    if mujoco.mj_isSparse(model):
-        row, col, val = sparse_triplets(data.efc_J_rownnz[:nefc], data.efc_J_rowadr[:nefc],
-                                        data.efc_J_colind, data.efc_J)
-    else:
-        dense = data.efc_J[: nefc * model.nv].reshape(nefc, model.nv)
-        row, col = np.nonzero(dense)
-        val = dense[row, col]
+    row, col, val = efc_triplets(bool(mujoco.mj_isSparse(model)), nefc, model.nv, data.efc_J,
+                                 data.efc_J_rownnz, data.efc_J_rowadr, data.efc_J_colind)
     types = data.efc_type[:nefc]
-    supported = (types == _SUPPORTED[0]) | (types == _SUPPORTED[1])
-    efc, kb, col0, jw, jf, ext = split_rows(row, col, val, local_of_dof, supported, data.efc_force[:nefc], n, _W)
+    supported = np.isin(types, SUPPORTED)
+    efc, kb, col0, jw, jf, ext = split_rows(row, col, val, local_of_dof, supported, data.efc_force[:nefc], n,
+                                            WINDOW)
     if not len(efc):
         return None, ext
     rows = Rows(col0, jw, data.efc_aref[efc].copy(), data.efc_D[efc].copy(), efc,
-                data.efc_R[efc] / data.efc_diagA[efc], jf if len(efc) > kb else None)
+                data.efc_R[efc] / data.efc_diagA[efc], jf)
     return rows, ext
 
 
-def _newton_step(system: ImplicitSystem, rows: Rows, w: np.ndarray, grad: np.ndarray) -> np.ndarray:
-    """H^-1 grad for H = A + J_b^T W_b J_b + J_f^T W_f J_f: a banded solve, with the far
-    rows as a low-rank (Woodbury) update."""
-    extra = rows.band(w, system.n)
-    kb = rows.n_banded
-    if rows.jf is None or not np.any(w[kb:] > 0):
-        return system.solve(grad, extra_band=extra)
-    act = np.flatnonzero(w[kb:] > 0)
-    jf, wf = rows.jf[act], w[kb:][act]
-    sol = system.solve(np.column_stack([grad, jf.T]), extra_band=extra)
-    y, z = sol[:, 0], sol[:, 1:]
-    small = np.diag(1.0 / wf) + jf @ z
-    return y - z @ np.linalg.solve(small, jf @ y)
-
-
-def solve(system: ImplicitSystem, a0: np.ndarray, rows: Rows, max_iter: int = 30,
-          tol: float = 1e-10) -> tuple[np.ndarray, np.ndarray, int]:
+def solve(system: ImplicitSystem, a0: np.ndarray, rows: Rows, max_iter: int = MAX_ITER,
+          tol: float = TOL) -> tuple[np.ndarray, np.ndarray, int]:
     """Newton's method on the contact problem in the implicit metric.
 
-    system: the step's :class:`derods.implicit.ImplicitSystem`.
+    system: the step's factored :class:`derods.sim.implicit.ImplicitSystem`.
     a0: unconstrained end-of-step acceleration [m/s^2], shape (n,).
     Returns (a [m/s^2] shape (n,), row forces lam [N] shape (k,), iterations).
     The objective is convex and piecewise quadratic; each Newton step is
     followed by an exact line search along its direction.
     """
-    n = system.n
-    a = a0.copy()
-    am = np.zeros(n)  # A (a - a0), updated along the steps instead of recomputed
-    jar = rows.apply(a) - rows.aref
-    scale = np.max(np.abs(system.mass * a0)) + np.max(np.abs(rows.d * rows.aref)) + 1e-300
-    it = 0
-    for it in range(1, max_iter + 1):
-        w = np.where(jar < 0, rows.d, 0.0)
-        grad = am + rows.transpose_apply(w * jar, n)
-        if np.max(np.abs(grad)) <= tol * scale:
-            break
-        delta = -_newton_step(system, rows, w, grad)
-        # Exact line search on f(a + t delta): f'(t) is piecewise linear and increasing.
-        jd = rows.apply(delta)
-        ad = system.a_matvec(delta)
-        t = exact_line_search(jar, jd, rows.d, float(delta @ ad), float(delta @ am))
-        a = a + t * delta
-        am = am + t * ad
-        jar = jar + t * jd
-        if np.max(np.abs(t * delta)) <= tol * (np.max(np.abs(a)) + 1e-300):
-            break
-    jar = rows.apply(a) - rows.aref
-    lam = np.where(jar < 0, -rows.d * jar, 0.0)
-    return a, lam, it
+    return _k.newton(system.k_band, system.a_band, system.g, system.tw_lo, system.tw_hi, system.tw_c, system.s,
+                     system.mass, system.m_coef, np.ascontiguousarray(a0, dtype=float), rows.col0, rows.jw,
+                     rows._jf(system.n), np.ascontiguousarray(rows.aref, dtype=float),
+                     np.ascontiguousarray(rows.d, dtype=float), max_iter, tol)
+
+
+class ContactStep:
+    """The per-step contact stage of a world: MuJoCo's rows after its forward pass in,
+    the corrected acceleration of the rod dofs out (one compiled call).
+
+    model: the compiled model; local_of_dof (nv,): each MuJoCo dof's place among the
+    rods' free dofs, -1 elsewhere. After :meth:`__call__`, ``force`` (n,) [N] holds the
+    constraint force on the rod dofs.
+    """
+
+    def __init__(self, model: mujoco.MjModel, local_of_dof: np.ndarray, n: int):
+        self.is_sparse = bool(mujoco.mj_isSparse(model))
+        self.nv = model.nv
+        self.local_of_dof = np.ascontiguousarray(local_of_dof, dtype=np.int64)
+        self.force = np.zeros(n)
+        self.a = np.zeros(n)
+        self._force_is_zero = True
+
+    def __call__(self, data: mujoco.MjData, system: ImplicitSystem, a0: np.ndarray) -> np.ndarray | None:
+        """The acceleration [m/s^2] (n,) with contacts, or None if no row touches a rod."""
+        nefc = data.nefc
+        if nefc:
+            touched = _k.contact_step(
+                self.is_sparse, nefc, self.nv, data.efc_J, data.efc_J_rownnz, data.efc_J_rowadr,
+                data.efc_J_colind, data.efc_type, data.efc_force, data.efc_aref, data.efc_R, data.efc_diagA,
+                SUPPORTED, self.local_of_dof, WINDOW, system.k_band, system.a_band, system.lb, system.g,
+                system.tw_lo, system.tw_hi, system.tw_c, system.s, system.z, system.den, system.mass,
+                system.m_coef, a0, self.a, self.force, MAX_ITER, TOL)
+            if touched:
+                self._force_is_zero = False
+                return self.a
+        if not self._force_is_zero:
+            self.force[:] = 0.0
+            self._force_is_zero = True
+        return None

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._numba.banded import band_cholesky, band_solve
+from .._numba.projection import project_rod
 
 
 def project(x: np.ndarray, inv_mass: np.ndarray, rest_len: np.ndarray, tol: float = 1e-10,
@@ -31,28 +31,10 @@ def project(x: np.ndarray, inv_mass: np.ndarray, rest_len: np.ndarray, tol: floa
     Returns (projected positions [m], iterations). Raises RuntimeError if it does not converge.
     """
     x = np.array(x, dtype=float)
-    # Edges between two held vertices cannot move; held vertices sit at the ends, so the
-    # edges that can move form one run.
-    movable = np.flatnonzero(inv_mass[:-1] + inv_mass[1:] > 0)
-    lo, hi = int(movable[0]), int(movable[-1]) + 1
-    w0, w1 = inv_mass[lo:hi], inv_mass[lo + 1:hi + 1]
-    rest = rest_len[lo:hi]
-    for it in range(max_iter + 1):
-        e = x[lo + 1:hi + 1] - x[lo:hi]
-        sq = np.einsum("ij,ij->i", e, e)
-        c = sq / rest - rest
-        if np.max(np.abs(c / rest)) < tol:
-            return x, it
-        g = 2.0 * e / rest[:, None]  # dC_j / dx_{j+1} = g_j, dC_j / dx_j = -g_j
-        ab = np.zeros((2, len(c)))
-        ab[0] = np.einsum("ij,ij->i", g, g) * (w0 + w1)
-        ab[1, :-1] = -np.einsum("ij,ij->i", g[:-1], g[1:]) * w1[:-1]
-        dlam = band_solve(band_cholesky(ab), c[:, None])[:, 0]
-        f = g * dlam[:, None]
-        jt_lam = np.zeros_like(x)  # grad C^T dlambda
-        jt_lam[lo + 1:hi + 1] += f
-        jt_lam[lo:hi] -= f
-        x -= inv_mass[:, None] * jt_lam
-    raise RuntimeError(
-        f"fast projection did not converge in {max_iter} iterations (strain {np.max(np.abs(c / rest)):.2e})"
-    )
+    it = project_rod(x, np.ascontiguousarray(inv_mass, dtype=float), np.ascontiguousarray(rest_len, dtype=float),
+                     tol, max_iter)
+    if it < 0:
+        e = np.diff(x, axis=0)
+        strain = np.max(np.abs(np.einsum("ij,ij->i", e, e) / rest_len**2 - 1.0))
+        raise RuntimeError(f"fast projection did not converge in {max_iter} iterations (strain {strain:.2e})")
+    return x, it

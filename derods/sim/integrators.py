@@ -1,0 +1,265 @@
+"""One step of a world, per mode: explicit, implicit with contact, projection.
+
+Every mode runs the same first half (:meth:`Step.elastic`), each quantity
+computed once, for all rods at once:
+
+1. positions of every vertex from MuJoCo's qpos (and xpos for vertices held by
+   moving bodies) and the strain check;
+2. frames transported, clamps turned with their bodies, twist solved, forces
+   and the PSD band of every rod (:func:`derods.step.evaluate`, one compiled
+   call; rods it does not cover go through :meth:`derods.Rod.step_terms`);
+3. the rods' reaction on the bodies that hold them.
+
+Then the mode's own half: the explicit step applies the elastic force; the
+implicit step solves the linearly implicit system (:mod:`derods.sim.implicit`),
+lets MuJoCo's forward pass find the contacts, re-solves them in the implicit
+metric (:mod:`derods.sim.contact`) and lets MuJoCo integrate; the projection
+step projects the implicit prediction onto inextensible edges. Last, the
+divergence check (:mod:`derods.sim.divergence`).
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from .._numba import coupling as _io
+from .._numba import implicit as _imp
+from .._numba.projection import projection_step
+from ..rod import RodState
+from ..step import EndBodies, Frames, RodSet, Terms, evaluate
+from .clamps import Reactions
+from .contact import ContactStep
+from .divergence import MAX_SPEED, MAX_STRAIN, Diagnosis
+from .implicit import ImplicitSystem, restrict_band
+from .layout import Layout, RodEntry
+
+#: Tolerance [relative edge strain] and iteration cap of the projection mode.
+PROJECTION_TOL = 1e-10
+PROJECTION_MAX_ITER = 50
+
+
+class Step:
+    """What every mode shares; ``step()`` is the mode's. Built once at compile.
+
+    model, data: MuJoCo's. layout: :class:`derods.sim.layout.Layout`. entries: the rods.
+    rods, frames, ends: the compiled step's :class:`derods.step.RodSet`, state and clamps on
+    bodies. mass_damping a [1/s], stiffness_damping b [s]. diagnosis: names failures.
+    """
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, layout: Layout, entries: list[RodEntry],
+                 rods: RodSet, frames: Frames, ends: EndBodies, mass_damping: float, stiffness_damping: float,
+                 diagnosis: Diagnosis):
+        self.model, self.data = model, data
+        self.layout, self.entries = layout, entries
+        self.rods, self.frames, self.ends = rods, frames, ends
+        self.mass_damping, self.stiffness_damping = mass_damping, stiffness_damping
+        self.diagnosis = diagnosis
+        self.h = float(model.opt.timestep)
+        # MuJoCo's arrays, as views kept for the data's life.
+        self.qpos, self.qvel, self.qacc = data.qpos, data.qvel, data.qacc
+        self.xpos, self.xmat = data.xpos, data.xmat
+        self.qfrc_applied, self.xfrc_applied = data.qfrc_applied, data.xfrc_applied
+        self.qfrc_smooth, self.qfrc_constraint = data.qfrc_smooth, data.qfrc_constraint
+        self.warnings = data.warning.number
+        self.gravity = np.array(model.opt.gravity, dtype=float)
+        n = layout.n
+        self.x = np.zeros_like(layout.x0)
+        self.terms = Terms.empty(rods.n_rods, rods.n_vertices, n, layout.band_rows)
+        tw = [i for i in range(rods.n_rods) if rods.compiled[i] and rods.has_twist[i] and rods.clamped[i]]
+        self.rod_tw = np.array(tw, dtype=np.int64)
+        self.system = ImplicitSystem(self.h, n, layout.mass, mass_damping, stiffness_damping, layout.band_rows,
+                                     layout.dof_off[self.rod_tw], layout.dof_off[self.rod_tw + 1])
+        self.system.k_band = self.terms.band  # the compiled step writes K's band in place
+        self.v = np.zeros(n)
+        self.other = np.zeros(n)
+        self.a0 = np.zeros(n)
+        self._rhs = np.zeros(n)
+        self._kv = np.zeros(n)
+        self.reactions = Reactions(model, layout, entries, rods.e_off)
+        self.material = [i for i in range(rods.n_rods) if not rods.compiled[i]]
+        # dE/dtheta of each rod's end edges (what clamps resist), for the reactions.
+        self.grad_theta_ends = np.zeros((rods.n_rods, 2))
+        self._clamped_open = rods.clamped & ~rods.closed & rods.compiled
+        self._moving = len(layout.moved_vertex) > 0
+        self._badqacc = int(self.warnings[mujoco.mjtWarning.mjWARN_BADQACC])
+        self.n_steps = 0
+
+    # -- the shared half ---------------------------------------------------------
+    def positions(self) -> np.ndarray:
+        """Every vertex's position [m] now, shape (n_vertices, 3) (into self.x)."""
+        lay = self.layout
+        _io.gather_positions(lay.x0, self.qpos, lay.qpos_adr, lay.free_vertex, self.xpos, lay.moved_vertex,
+                             lay.moved_body, self.x)
+        return self.x
+
+    def elastic(self) -> None:
+        """Positions, strain check, frames, twist, forces and band of every rod, reactions."""
+        if self._moving:
+            mujoco.mj_kinematics(self.model, self.data)  # after mj_step, xpos shows the previous state
+        x = self.positions()
+        bad = evaluate(self.rods, self.frames, x, self.layout.place, self.terms, self.ends, self.xmat, MAX_STRAIN)
+        if bad >= 0:
+            self.diagnosis.strain(bad, float(self.terms.strain[bad]), self.n_steps, self.data.time)
+        if self.material:
+            self._material_rods(x)
+        if self.reactions:
+            if self._clamped_open.any():
+                self.grad_theta_ends[self._clamped_open, 0] = -self.terms.lam[self._clamped_open]
+                self.grad_theta_ends[self._clamped_open, 1] = self.terms.lam[self._clamped_open]
+            self.reactions.apply(self.model, self.data, x, self.terms.grad, self.frames.t, self.grad_theta_ends)
+
+    def _material_rods(self, x: np.ndarray) -> None:
+        """Rods the compiled step does not cover (anisotropic or naturally curved): the
+        numpy path of :meth:`derods.Rod.step_terms` (Newton twist solve), one rod at a time."""
+        from .. import frames as fr
+        from ..twist import TwistBoundary
+
+        rods, lay, f = self.rods, self.layout, self.frames
+        for i in self.material:
+            e = self.entries[i]
+            vs, es = lay.vertices(i), slice(int(rods.e_off[i]), int(rods.e_off[i + 1]))
+            xi = x[vs]
+            strain = np.max(np.abs(np.linalg.norm(np.diff(np.concatenate([xi, xi[:1]]) if e.rod.closed else xi,
+                                                          axis=0), axis=1) / e.rod.rest_len - 1.0))
+            if not strain <= MAX_STRAIN:
+                self.diagnosis.strain(i, float(strain), self.n_steps, self.data.time)
+            state = RodState(xi, f.u[es], f.t[es], f.theta[es])
+            bd = None
+            if (self.ends.body[i] >= 0).any():
+                t = fr.tangents(xi, False)
+                u = fr.time_parallel_transport(state.u, state.t, t)
+                for k in range(2):
+                    b = self.ends.body[i, k]
+                    if b < 0:
+                        continue
+                    edge = 0 if k == 0 else e.rod.n_edges - 1
+                    angle = float(fr.signed_angle(u[edge], self.xmat[b].reshape(3, 3) @ self.ends.director[i, k],
+                                                  t[edge]))
+                    prev = f.theta_end[i, k]
+                    f.theta_end[i, k] = prev + (angle - prev + np.pi) % (2 * np.pi) - np.pi
+                b0 = e.rod.boundary
+                held = {k: f.theta_end[i, k] for k in range(2) if self.ends.body[i, k] >= 0}
+                bd = TwistBoundary(b0.kind, held.get(0, b0.theta_first), held.get(1, b0.theta_last),
+                                   b0.total_twist)
+            st = e.rod.step_terms(state, xi, use_kernel=False, boundary=bd)
+            f.u[es], f.t[es], f.theta[es] = st.state.u, st.state.t, st.state.theta
+            self.terms.grad[vs] = st.grad_x
+            self.terms.energy[i] = st.energy
+            self.grad_theta_ends[i] = st.grad_theta[0], st.grad_theta[-1]
+            band = st.hessian_banded
+            p0 = int(lay.dof_off[i])  # the rod's first dof in the solve order
+            if not e.rod.closed:
+                free = np.flatnonzero(~e.fixed)
+                band = restrict_band(band, 3 * free[0], 3 * free[-1] + 3)
+            self.terms.band[: band.shape[0], p0:p0 + band.shape[1]] = band
+
+    def check(self) -> None:
+        """Divergence after the step: MuJoCo's bad-acceleration reset, NaN, runaway speed."""
+        n_bad = int(self.warnings[mujoco.mjtWarning.mjWARN_BADQACC])
+        if n_bad != self._badqacc:
+            self._badqacc = n_bad
+            self.diagnosis.badqacc(self.n_steps, self.data.time)
+        k = _io.fastest_dof(self.qvel, self.layout.dofs, MAX_SPEED)
+        if k >= 0:
+            self.diagnosis.speed(self.layout.rod_of_dof(k), float(self.qvel[self.layout.dofs[k]]), self.n_steps,
+                                 self.data.time)
+
+    def unconstrained(self) -> None:
+        """The implicit step without contact: factor A, solve for a0 (into self.a0)."""
+        lay, t, s = self.layout, self.terms, self.system
+        _imp.unconstrained_step(t.band, t.grad, t.g_tw, t.coef, self.rod_tw, s.tw_lo, s.tw_hi, s.tw_c,
+                                lay.free_vertex, lay.free_body, lay.dofs, lay.mass, self.qvel, self.xfrc_applied,
+                                self.gravity, self.h, self.mass_damping, self.stiffness_damping, s.a_band, s.lb,
+                                s.g, s.z, s.den, self.v, self.other, self._rhs, self._kv, self.a0)
+
+    def step(self) -> None:  # pragma: no cover - every mode has its own
+        raise NotImplementedError
+
+
+class Explicit(Step):
+    """Apply the elastic force (and damping) and let MuJoCo integrate: stable only below
+    the explicit limit (~1e-5 s for stiff rods), kept for comparison."""
+
+    mode = "explicit"
+
+    def step(self) -> None:
+        self.elastic()
+        lay, t, s = self.layout, self.terms, self.system
+        _imp.explicit_force(t.band, t.grad, t.g_tw, t.coef, self.rod_tw, s.tw_lo, s.tw_hi, s.tw_c,
+                            lay.free_vertex, lay.dofs, lay.mass, self.qvel, self.mass_damping,
+                            self.stiffness_damping, s.g, self.v, self._kv, self.qfrc_applied)
+        mujoco.mj_step(self.model, self.data)
+        self.n_steps += 1
+        self.check()
+
+
+class Implicit(Step):
+    """Linearly implicit backward Euler with contacts re-solved in its metric (the default)."""
+
+    mode = "implicit"
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.contact = ContactStep(self.model, self.layout.local_of_dof, self.layout.n)
+        self.euler = self.model.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
+
+    def step(self) -> None:
+        m, d, lay = self.model, self.data, self.layout
+        self.elastic()
+        self.unconstrained()
+        # With this force MuJoCo's unconstrained acceleration of the rod dofs is a0, so its
+        # own constraint solve (for bodies the rods touch) sees the implicit motion.
+        _io.write_applied(lay.dofs, lay.mass, self.a0, self.other, self.qfrc_applied)
+        mujoco.mj_checkPos(m, d)
+        mujoco.mj_checkVel(m, d)
+        mujoco.mj_forward(m, d)
+        a = self.contact(d, self.system, self.a0)
+        if a is not None:
+            _io.write_acceleration(lay.dofs, lay.mass, a, self.qacc, self.qfrc_smooth, self.qfrc_constraint,
+                                   not self.euler)
+        mujoco.mj_checkAcc(m, d)
+        if self.euler:
+            mujoco.mj_Euler(m, d)
+        else:
+            mujoco.mj_implicit(m, d)
+        self.n_steps += 1
+        self.check()
+
+    @property
+    def contact_force(self) -> np.ndarray:
+        return self.contact.force
+
+
+class Projection(Step):
+    """The DER paper's method: implicit bending and twisting, inextensibility by fast
+    projection (:mod:`derods.sim.projection`); MuJoCo resolves contacts with the bare
+    vertex masses, as in the explicit mode."""
+
+    mode = "projection"
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        lay = self.layout
+        self.inv_mass = np.zeros(len(lay.x0))
+        self.inv_mass[lay.free_vertex] = 1.0 / lay.mass[0::3]
+        self._xp = np.zeros_like(lay.x0)
+        self._accel = np.zeros(lay.n)
+
+    def step(self) -> None:
+        lay = self.layout
+        self.elastic()
+        self.unconstrained()
+        bad = projection_step(self.x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, self.inv_mass,
+                              lay.place, self.v, self.a0, self.h, PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp,
+                              self._accel)
+        if bad >= 0:
+            raise RuntimeError(f"fast projection did not converge in {PROJECTION_MAX_ITER} iterations "
+                               f"(rod {lay.names[bad]!r})")
+        _io.write_applied(lay.dofs, lay.mass, self._accel, self.other, self.qfrc_applied)
+        mujoco.mj_step(self.model, self.data)
+        self.n_steps += 1
+        self.check()
+
+
+MODES = {"explicit": Explicit, "implicit": Implicit, "projection": Projection}
