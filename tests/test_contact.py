@@ -36,13 +36,14 @@ def small_problem(rng, n_vertices=6, n_rows=7, n_far=0):
     return system, rows, rng.normal(size=n)
 
 
-@pytest.mark.parametrize("n_far", [0, 3])
-def test_newton_finds_the_minimum_of_mujocos_primal_problem(n_far):
+@pytest.mark.parametrize("n_rows,n_far", [(7, 0), (7, 3), (0, 4)])
+def test_newton_finds_the_minimum_of_mujocos_primal_problem(n_rows, n_far):
     """min 1/2 (a - a0)^T A (a - a0) + sum 1/2 D_i min(J_i a - aref_i, 0)^2, compared with a
     general-purpose minimizer, and its optimality condition holds to round-off; with
-    rows between distant vertices (self-contact) handled as a low-rank update."""
+    rows between distant vertices (self-contact) handled as a low-rank update, also when
+    every row is one (a self-contact and nothing else: B must still be factored)."""
     rng = np.random.default_rng(0)
-    system, rows, a0 = small_problem(rng, n_far=n_far)
+    system, rows, a0 = small_problem(rng, n_rows=n_rows, n_far=n_far)
     a, lam, iters = contact.solve(system, a0, rows)
     assert np.all(lam >= 0) and np.any(lam > 0) and np.any(lam == 0)
 

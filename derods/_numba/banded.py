@@ -1,9 +1,13 @@
 """Banded symmetric linear algebra, compiled: Cholesky, solves, products, inverse band.
 
-Matrices are kept as their lower band, ``ab[d, j] = A[j + d, j]`` (the layout of
-:func:`scipy.linalg.cholesky_banded` with ``lower=True``). At the sizes of one
-rod (tens to hundreds of dofs, 9 to 15 diagonals) the call overhead of scipy
-dominates; these loops have none.
+Symmetric matrices are given as their lower band in scipy's layout,
+``ab[d, j] = A[j + d, j]``, shape (b + 1, n) (:func:`scipy.linalg.cholesky_banded`
+with ``lower=True``). Their Cholesky factors are kept column by column,
+``lt[j, d] = L[j + d, j]``, shape (n, b + 1): the factorization (right-looking)
+and the solves then walk memory in order, and several right-hand sides side by
+side, shape (n, m), are solved in one sweep. At the sizes of a few rods (tens
+to hundreds of dofs, 9 to 15 diagonals) scipy's call overhead would dominate;
+these loops have none.
 """
 
 from __future__ import annotations
@@ -15,99 +19,111 @@ import numpy as np
 
 
 @nb.njit(cache=True)
-def banded_inverse_band(lb):
-    """The entries of A^-1 inside the band of A, from A's lower banded Cholesky factor.
+def cholesky_into(ab, lt):
+    """Cholesky factor of the symmetric positive definite matrix with lower band ab
+    (b + 1, n), into lt (n, b + 1), lt[j, d] = L[j + d, j] with A = L L^T. Right-looking:
+    each column, once divided by its pivot, updates the window below it. Raises
+    ValueError if A is not positive definite (or not finite)."""
+    bwp, n = ab.shape
+    bw = bwp - 1
+    for j in range(n):
+        for d in range(bwp):
+            lt[j, d] = ab[d, j]
+    for j in range(n):
+        pivot = lt[j, 0]
+        if not pivot > 0.0:
+            raise ValueError("matrix is not positive definite")
+        pivot = math.sqrt(pivot)
+        lt[j, 0] = pivot
+        inv = 1.0 / pivot
+        m = min(bw, n - 1 - j)
+        for r in range(1, m + 1):
+            lt[j, r] *= inv
+        for s in range(1, m + 1):
+            ls = lt[j, s]
+            if ls != 0.0:
+                for r in range(s, m + 1):
+                    lt[j + s, r - s] -= lt[j, r] * ls
+        for r in range(m + 1, bwp):
+            lt[j, r] = 0.0
 
-    lb: lower band of L with A = L L^T (scipy.linalg.cholesky_banded(..., lower=True)),
-    shape (b + 1, n). Returns zb with zb[d, j] = (A^-1)[j + d, j], shape (b + 1, n).
+
+@nb.njit(cache=True)
+def solve_into(lt, x, lo, hi):
+    """Solve L L^T y = x in place on x[lo:hi] (1D), for the diagonal block [lo, hi) of a
+    block-diagonal matrix (or the whole matrix: lo = 0, hi = n)."""
+    bw = lt.shape[1] - 1
+    for j in range(lo, hi):  # forward: L y = b
+        xj = x[j] / lt[j, 0]
+        x[j] = xj
+        if xj != 0.0:
+            for r in range(1, min(bw, hi - 1 - j) + 1):
+                x[j + r] -= lt[j, r] * xj
+    for j in range(hi - 1, lo - 1, -1):  # backward: L^T x = y
+        acc = x[j]
+        for r in range(1, min(bw, hi - 1 - j) + 1):
+            acc -= lt[j, r] * x[j + r]
+        x[j] = acc / lt[j, 0]
+
+
+@nb.njit(cache=True)
+def solve_columns(lt, xs, lo, hi, first):
+    """Solve L L^T Y = X in place for the columns of xs (n, m) side by side, rows lo..hi
+    (a diagonal block, or the whole matrix). first: the first row where X may be nonzero
+    (the forward sweep starts there; its rows above stay zero)."""
+    bw = lt.shape[1] - 1
+    m = xs.shape[1]
+    for j in range(max(lo, first), hi):
+        inv = 1.0 / lt[j, 0]
+        for c in range(m):
+            xs[j, c] *= inv
+        for r in range(1, min(bw, hi - 1 - j) + 1):
+            t = lt[j, r]
+            for c in range(m):
+                xs[j + r, c] -= t * xs[j, c]
+    for j in range(hi - 1, lo - 1, -1):
+        for r in range(1, min(bw, hi - 1 - j) + 1):
+            t = lt[j, r]
+            for c in range(m):
+                xs[j, c] -= t * xs[j + r, c]
+        inv = 1.0 / lt[j, 0]
+        for c in range(m):
+            xs[j, c] *= inv
+
+
+@nb.njit(cache=True)
+def inverse_band(lt, rows):
+    """The entries of A^-1 inside the lower band of ``rows`` rows, from A's factor lt
+    (n, b + 1) (rows <= b + 1). Returns zb, zb[d, j] = (A^-1)[j + d, j], shape (rows, n).
+
     Takahashi's recurrence, from the last column to the first: with Lt = L / diag(L),
     Z_ij = -sum_k Lt_kj Z_ik (i > j), Z_jj = 1 / L_jj^2 - sum_k Lt_kj Z_kj, k in (j, j + b].
     """
-    bw = lb.shape[0] - 1
-    n = lb.shape[1]
-    zb = np.zeros_like(lb)
+    n = lt.shape[0]
+    bw = lt.shape[1] - 1
+    # Z inside the factor's full band, column-major like lt: zt[j, d] = Z[j + d, j].
+    zt = np.zeros((n, bw + 1))
     for j in range(n - 1, -1, -1):
-        ljj = lb[0, j]
+        ljj = lt[j, 0]
         kmax = min(bw, n - 1 - j)
         for di in range(kmax, 0, -1):
             i = j + di
             acc = 0.0
             for dk in range(1, kmax + 1):
                 k = j + dk
-                # Z_ik with i, k > j, |i - k| < bw: stored at zb[|i - k|, min(i, k)].
-                zik = zb[i - k, k] if i >= k else zb[k - i, i]
-                acc += lb[dk, j] / ljj * zik
-            zb[di, j] = -acc
+                # Z_ik with i, k > j, |i - k| < bw: stored at zt[min(i, k), |i - k|].
+                zik = zt[k, i - k] if i >= k else zt[i, k - i]
+                acc += lt[j, dk] / ljj * zik
+            zt[j, di] = -acc
         acc = 0.0
         for dk in range(1, kmax + 1):
-            acc += lb[dk, j] / ljj * zb[dk, j]
-        zb[0, j] = 1.0 / (ljj * ljj) - acc
-    return zb
-
-
-@nb.njit(cache=True)
-def cholesky_into(ab, lb):
-    """Lower banded Cholesky factor of a symmetric positive definite matrix, into lb.
-
-    ab: lower band, ab[d, j] = A[j + d, j], shape (b + 1, n); lb: the factor L with
-    A = L L^T in the same layout (what scipy.linalg.cholesky_banded(lower=True)
-    returns), same shape, overwritten. Raises ValueError if A is not positive definite.
-    """
-    bw = ab.shape[0] - 1
-    n = ab.shape[1]
-    for j in range(n):
-        acc = ab[0, j]
-        for k in range(max(0, j - bw), j):
-            ljk = lb[j - k, k]
-            acc -= ljk * ljk
-        if not acc > 0.0:
-            raise ValueError("matrix is not positive definite")
-        ljj = math.sqrt(acc)
-        lb[0, j] = ljj
-        for i in range(j + 1, min(n, j + bw + 1)):
-            acc = ab[i - j, j]
-            for k in range(max(0, i - bw), j):
-                acc -= lb[i - k, k] * lb[j - k, k]
-            lb[i - j, j] = acc / ljj
-        for d in range(min(bw + 1, n - j), bw + 1):
-            lb[d, j] = 0.0
-
-
-@nb.njit(cache=True)
-def band_cholesky(ab):
-    """Lower banded Cholesky factor of ab (see :func:`cholesky_into`), a new array."""
-    lb = np.zeros_like(ab)
-    cholesky_into(ab, lb)
-    return lb
-
-
-@nb.njit(cache=True)
-def solve_into(lb, x, lo, hi):
-    """Solve L L^T y = x in place on x[lo:hi] (1D), for the diagonal block [lo, hi) of a
-    block-diagonal matrix (or the whole matrix: lo = 0, hi = n)."""
-    bw = lb.shape[0] - 1
-    for j in range(lo, hi):  # forward: L y = b
-        acc = x[j]
-        for k in range(max(lo, j - bw), j):
-            acc -= lb[j - k, k] * x[k]
-        x[j] = acc / lb[0, j]
-    for j in range(hi - 1, lo - 1, -1):  # backward: L^T x = y
-        acc = x[j]
-        for i in range(j + 1, min(hi, j + bw + 1)):
-            acc -= lb[i - j, j] * x[i]
-        x[j] = acc / lb[0, j]
-
-
-@nb.njit(cache=True)
-def band_solve(lb, rhs):
-    """Solve L L^T x = rhs for a lower banded factor lb (b + 1, n); rhs shape (n, m)."""
-    n, m = rhs.shape
-    x = np.empty((m, n))
-    for c in range(m):
+            acc += lt[j, dk] / ljj * zt[j, dk]
+        zt[j, 0] = 1.0 / (ljj * ljj) - acc
+    zb = np.zeros((rows, n))
+    for d in range(min(rows, bw + 1)):
         for j in range(n):
-            x[c, j] = rhs[j, c]
-        solve_into(lb, x[c], 0, n)
-    return x.T.copy()
+            zb[d, j] = zt[j, d]
+    return zb
 
 
 @nb.njit(cache=True)
@@ -121,6 +137,33 @@ def matvec_into(ab, w, y):
         for j in range(n - d):
             y[j + d] += ab[d, j] * w[j]
             y[j] += ab[d, j] * w[j + d]
+
+
+# -- scipy's layout, for callers and tests that want it ----------------------------
+
+@nb.njit(cache=True)
+def band_cholesky(ab):
+    """Lower banded Cholesky factor of ab (b + 1, n), in scipy's layout (b + 1, n), as
+    :func:`scipy.linalg.cholesky_banded` with ``lower=True`` returns it."""
+    lt = np.empty((ab.shape[1], ab.shape[0]))
+    cholesky_into(ab, lt)
+    return lt.T.copy()
+
+
+@nb.njit(cache=True)
+def band_solve(lb, rhs):
+    """Solve L L^T x = rhs for a lower banded factor lb (b + 1, n) in scipy's layout;
+    rhs shape (n, m)."""
+    x = rhs.copy()
+    solve_columns(lb.T.copy(), x, 0, x.shape[0], 0)
+    return x
+
+
+@nb.njit(cache=True)
+def banded_inverse_band(lb):
+    """The entries of A^-1 inside the band of A (b + 1, n), from its factor lb in scipy's
+    layout (see :func:`inverse_band`)."""
+    return inverse_band(lb.T.copy(), lb.shape[0])
 
 
 @nb.njit(cache=True)

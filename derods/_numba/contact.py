@@ -3,7 +3,9 @@ the metric of the implicit step, from MuJoCo's rows to the corrected acceleratio
 
 Each function follows the numbered steps of :mod:`derods.sim.contact`'s docstring;
 the arrays of the implicit system are those of
-:class:`derods.sim.implicit.ImplicitSystem` (band, factor, twist terms).
+:class:`derods.sim.implicit.ImplicitSystem` (band, factor, twist terms). Far rows
+(rows that touch dofs too far apart for the band: self-contact, rod-rod contact)
+are kept sparse, as CSR (``fptr``, ``fcol``, ``fval``).
 """
 
 from __future__ import annotations
@@ -11,104 +13,114 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from .banded import cholesky_into, solve_into
-from .contact_rows import (apply_rows, efc_triplets, exact_line_search, rows_band, rows_diag,
-                           split_rows, transpose_apply_rows)
+from .banded import cholesky_into, inverse_band, solve_columns
+from .contact_rows import efc_triplets, exact_line_search, rows_apply, rows_band, rows_diag, rows_transpose_apply
+from .contact_rows import split_rows
 from .implicit import k_matvec_into, sm_solve_into
-from .banded import banded_inverse_band
 
 
 @nb.njit(cache=True)
-def _solve_columns(ab, g, tw_lo, tw_hi, tw_c, s, cols):
-    """(B + E + sum_i s c_i g_i g_i^T)^-1 applied to each row of cols (m, n), in place:
-    factor the band ab (A's band plus the rows' band E), solve, then one Sherman-Morrison
-    update per twist term with z_i = (B + E)^-1 g_i over the whole length (the rows' band
-    may couple rods), applied in turn."""
-    n = ab.shape[1]
-    lb = np.empty_like(ab)
-    cholesky_into(ab, lb)
-    for c in range(cols.shape[0]):
-        solve_into(lb, cols[c], 0, n)
-    for i in range(len(tw_lo)):
-        lo, hi = tw_lo[i], tw_hi[i]
-        z = np.zeros(n)
-        for j in range(lo, hi):
-            z[j] = g[j]
-        solve_into(lb, z, 0, n)
-        gz = 0.0
-        for j in range(lo, hi):
-            gz += g[j] * z[j]
-        sc = s * tw_c[i]
-        for c in range(cols.shape[0]):
-            gx = 0.0
-            for j in range(lo, hi):
-                gx += g[j] * cols[c, j]
-            f = sc * gx / (1.0 + sc * gz)
-            for j in range(n):
-                cols[c, j] -= z[j] * f
-
-
-@nb.njit(cache=True)
-def newton_direction(a_band, g, tw_lo, tw_hi, tw_c, s, col0, jw, jf, w, grad):
-    """H^-1 grad for H = A + J_b^T W_b J_b + J_f^T W_f J_f: a banded solve with the banded
-    rows added to A's band, and the active far rows as a low-rank (Woodbury) update."""
-    n = a_band.shape[1]
-    kb = len(col0)
-    extra = rows_band(col0, jw, w[:kb], n)
-    ab = a_band.copy()
-    for d in range(extra.shape[0]):
+def far_rows_csr(jf):
+    """Far rows (k_f, n), dense, as CSR: (fptr (k_f + 1,), fcol, fval)."""
+    k, n = jf.shape
+    fptr = np.zeros(k + 1, dtype=np.int64)
+    for r in range(k):
+        c = 0
         for j in range(n):
-            ab[d, j] += extra[d, j]
-    n_act = 0
-    for r in range(jf.shape[0]):
-        if w[kb + r] > 0:
-            n_act += 1
-    cols = np.empty((1 + n_act, n))
-    cols[0] = grad
-    act = np.empty(n_act, dtype=np.int64)
+            if jf[r, j] != 0.0:
+                c += 1
+        fptr[r + 1] = fptr[r] + c
+    fcol = np.empty(fptr[k], dtype=np.int64)
+    fval = np.empty(fptr[k])
     q = 0
-    for r in range(jf.shape[0]):
-        if w[kb + r] > 0:
-            act[q] = r
-            cols[1 + q] = jf[r]
-            q += 1
-    _solve_columns(ab, g, tw_lo, tw_hi, tw_c, s, cols)
-    if n_act == 0:
-        return cols[0].copy()
-    y = cols[0]
-    zt = cols[1:]  # (n_act, n): rows of Z^T
-    small = np.zeros((n_act, n_act))
-    rhs = np.zeros(n_act)
-    for p in range(n_act):
-        small[p, p] = 1.0 / w[kb + act[p]]
-        jp = jf[act[p]]
-        for q in range(n_act):
-            acc = 0.0
-            for j in range(n):
-                acc += jp[j] * zt[q, j]
-            small[p, q] += acc
+    for r in range(k):
+        for j in range(n):
+            if jf[r, j] != 0.0:
+                fcol[q] = j
+                fval[q] = jf[r, j]
+                q += 1
+    return fptr, fcol, fval
+
+
+@nb.njit(cache=True)
+def apply_all(col0, jw, fptr, fcol, fval, a):
+    """J a over the banded rows (first) and the far rows, shape (k_b + k_f,)."""
+    kb = len(col0)
+    kf = len(fptr) - 1
+    out = np.empty(kb + kf)
+    out[:kb] = rows_apply(col0, jw, a)
+    for r in range(kf):
         acc = 0.0
-        for j in range(n):
-            acc += jp[j] * y[j]
-        rhs[p] = acc
-    corr = np.linalg.solve(small, rhs)
-    out = y.copy()
-    for q in range(n_act):
-        for j in range(n):
-            out[j] -= zt[q, j] * corr[q]
+        for q in range(fptr[r], fptr[r + 1]):
+            acc += fval[q] * a[fcol[q]]
+        out[kb + r] = acc
     return out
 
 
 @nb.njit(cache=True)
-def newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a0, col0, jw, jf, aref, d, max_iter, tol):
+def transpose_apply_all(col0, jw, fptr, fcol, fval, lam, n):
+    """J^T lam over the banded and the far rows, shape (n,)."""
+    kb = len(col0)
+    out = rows_transpose_apply(col0, jw, lam[:kb], n)
+    for r in range(len(fptr) - 1):
+        lr = lam[kb + r]
+        if lr != 0.0:
+            for q in range(fptr[r], fptr[r + 1]):
+                out[fcol[q]] += fval[q] * lr
+    return out
+
+
+@nb.njit(cache=True)
+def _far_columns(fptr, fcol, fval, n):
+    """The far rows' transposes side by side, (n, k_f), and their first nonzero dof."""
+    kf = len(fptr) - 1
+    cols = np.zeros((n, kf))
+    first = n
+    for r in range(kf):
+        for q in range(fptr[r], fptr[r + 1]):
+            cols[fcol[q], r] = fval[q]
+            first = min(first, fcol[q])
+    return cols, first
+
+
+@nb.njit(cache=True)
+def _twist_update(g, tw_lo, tw_hi, tw_c, s, ztw, cols):
+    """Sherman-Morrison for each twist term in turn, on every column of cols (n, m):
+    x -= z_i (s c_i g_i.x) / (1 + s c_i g_i.z_i), z_i = ztw[:, i] (B^-1 g_i)."""
+    n = cols.shape[0]
+    for i in range(len(tw_lo)):
+        lo, hi = tw_lo[i], tw_hi[i]
+        gz = 0.0
+        for j in range(lo, hi):
+            gz += g[j] * ztw[j, i]
+        sc = s * tw_c[i]
+        for c in range(cols.shape[1]):
+            gx = 0.0
+            for j in range(lo, hi):
+                gx += g[j] * cols[j, c]
+            f = sc * gx / (1.0 + sc * gz)
+            for j in range(n):
+                cols[j, c] -= ztw[j, i] * f
+
+
+@nb.njit(cache=True)
+def newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a0, col0, jw, fptr, fcol, fval, aref, d,
+           max_iter, tol):
     """Minimize 1/2 (a - a0)^T A (a - a0) + sum_i 1/2 d_i min(J_i a - aref_i, 0)^2 by
-    Newton's method with an exact line search. Returns (a, lam, iterations)."""
+    Newton's method with an exact line search. Returns (a, lam, iterations).
+
+    Each Newton step solves with H = B + J_f^T W_f J_f + twist terms, B = A's band plus
+    the active banded rows: B is factored (and the far rows solved against it) only when
+    the banded rows' active set changes; the active far rows then enter as a Woodbury
+    update of a small dense system."""
     n = len(a0)
+    kb = len(col0)
+    kf = len(fptr) - 1
+    k = kb + kf
+    n_tw = len(tw_lo)
     a = a0.copy()
     am = np.zeros(n)  # A (a - a0), updated along the steps instead of recomputed
-    jar = apply_rows(col0, jw, jf, a) - aref
-    k = len(jar)
-    scale = 1e-300
+    jar = apply_all(col0, jw, fptr, fcol, fval, a) - aref
     m1 = 0.0
     for j in range(n):
         m1 = max(m1, abs(mass[j] * a0[j]))
@@ -117,19 +129,83 @@ def newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a0, col0, jw,
         m2 = max(m2, abs(d[i] * aref[i]))
     scale = m1 + m2 + 1e-300
     w = np.empty(k)
+    w_factored = np.full(kb, -1.0)  # the banded weights B was last factored with
+    ab = np.empty_like(a_band)
+    lt = np.empty((n, a_band.shape[0]))
+    ztw = np.zeros((n, n_tw))
+    zf = np.zeros((n, kf))
+    zf_ready = False
+    far_cols, far_first = _far_columns(fptr, fcol, fval, n)
     kd = np.empty(n)
+    y = np.empty((n, 1))
     it = 0
     for it in range(1, max_iter + 1):
         for i in range(k):
             w[i] = d[i] if jar[i] < 0 else 0.0
-        grad = am + transpose_apply_rows(col0, jw, jf, w * jar, n)
+        grad = am + transpose_apply_all(col0, jw, fptr, fcol, fval, w * jar, n)
         gmax = 0.0
         for j in range(n):
             gmax = max(gmax, abs(grad[j]))
         if gmax <= tol * scale:
             break
-        delta = -newton_direction(a_band, g, tw_lo, tw_hi, tw_c, s, col0, jw, jf, w, grad)
-        jd = apply_rows(col0, jw, jf, delta)
+        same = it > 1  # B is factored in the first iteration, then when its rows change
+        for i in range(kb):
+            if w[i] != w_factored[i]:
+                same = False
+                break
+        if not same:
+            extra = rows_band(col0, jw, w[:kb], n)
+            ab[:] = a_band
+            for dd in range(extra.shape[0]):
+                for j in range(n):
+                    ab[dd, j] += extra[dd, j]
+            cholesky_into(ab, lt)
+            ztw[:] = 0.0
+            for i in range(n_tw):
+                for j in range(tw_lo[i], tw_hi[i]):
+                    ztw[j, i] = g[j]
+            if n_tw:
+                solve_columns(lt, ztw, 0, n, 0)
+            w_factored[:] = w[:kb]
+            zf_ready = False
+        # The Newton direction: -(B + twist)^-1 grad, then the far rows by Woodbury.
+        for j in range(n):
+            y[j, 0] = grad[j]
+        solve_columns(lt, y, 0, n, 0)
+        _twist_update(g, tw_lo, tw_hi, tw_c, s, ztw, y)
+        n_act = 0
+        for r in range(kf):
+            if w[kb + r] > 0:
+                n_act += 1
+        delta = -y[:, 0]
+        if n_act:
+            if not zf_ready:
+                zf[:] = far_cols
+                solve_columns(lt, zf, 0, n, far_first)
+                _twist_update(g, tw_lo, tw_hi, tw_c, s, ztw, zf)
+                zf_ready = True
+            act = np.empty(n_act, dtype=np.int64)
+            q = 0
+            for r in range(kf):
+                if w[kb + r] > 0:
+                    act[q] = r
+                    q += 1
+            small = np.zeros((n_act, n_act))
+            rhs = np.zeros(n_act)
+            for p in range(n_act):
+                r = act[p]
+                small[p, p] = 1.0 / w[kb + r]
+                for qq in range(fptr[r], fptr[r + 1]):
+                    col, val = fcol[qq], fval[qq]
+                    rhs[p] += val * y[col, 0]
+                    for c in range(n_act):
+                        small[p, c] += val * zf[col, act[c]]
+            corr = np.linalg.solve(small, rhs)
+            for c in range(n_act):
+                zc = act[c]
+                for j in range(n):
+                    delta[j] += zf[j, zc] * corr[c]
+        jd = apply_all(col0, jw, fptr, fcol, fval, delta)
         k_matvec_into(k_band, g, tw_lo, tw_hi, tw_c, delta, kd)
         ad = s * kd + mass * m_coef * delta
         t = exact_line_search(jar, jd, d, float(delta @ ad), float(delta @ am))
@@ -143,17 +219,17 @@ def newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a0, col0, jw,
             amax = max(amax, abs(a[j]))
         if smax <= tol * (amax + 1e-300):
             break
-    jar = apply_rows(col0, jw, jf, a) - aref
+    jar = apply_all(col0, jw, fptr, fcol, fval, a) - aref
     lam = np.where(jar < 0, -d * jar, 0.0)
     return a, lam, it
 
 
 @nb.njit(cache=True)
-def delassus_diagonal(lb, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, jf):
+def delassus_diagonal(lt, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, fptr, fcol, fval):
     """diag(J A^-1 J^T) of every row: banded rows from the band of B^-1 (Takahashi) with
-    the twist terms' Sherman-Morrison corrections; far rows by one solve each."""
-    n = lb.shape[1]
-    zb = banded_inverse_band(lb)
+    the twist terms' Sherman-Morrison corrections; far rows by solves, side by side."""
+    n = lt.shape[0]
+    zb = inverse_band(lt, jw.shape[1])
     diag_b = rows_diag(col0, jw, zb)
     for i in range(len(tw_lo)):
         zi = np.zeros(n)
@@ -161,25 +237,36 @@ def delassus_diagonal(lb, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, jf):
         for j in range(lo, hi):
             zi[j] = z[j]
         wi = s * tw_c[i] / den[i]
-        jz = apply_rows(col0, jw, np.zeros((0, n)), zi)
+        jz = rows_apply(col0, jw, zi)
         for r in range(len(col0)):
             diag_b[r] -= wi * jz[r] * jz[r]
     kb = len(col0)
-    out = np.empty(kb + jf.shape[0])
+    kf = len(fptr) - 1
+    out = np.empty(kb + kf)
     out[:kb] = diag_b
-    for r in range(jf.shape[0]):
-        col = jf[r].copy()
-        sm_solve_into(lb, g, tw_lo, tw_hi, tw_c, s, z, den, col)
-        acc = 0.0
-        for j in range(n):
-            acc += jf[r, j] * col[j]
-        out[kb + r] = acc
+    if kf:
+        cols, first = _far_columns(fptr, fcol, fval, n)
+        solve_columns(lt, cols, 0, n, first)
+        for i in range(len(tw_lo)):  # A^-1 = B^-1 - w z z^T for each twist term
+            lo, hi = tw_lo[i], tw_hi[i]
+            wi = s * tw_c[i] / den[i]
+            for r in range(kf):
+                gx = 0.0
+                for j in range(lo, hi):
+                    gx += g[j] * cols[j, r]
+                for j in range(lo, hi):
+                    cols[j, r] -= z[j] * wi * gx
+        for r in range(kf):
+            acc = 0.0
+            for q in range(fptr[r], fptr[r + 1]):
+                acc += fval[q] * cols[fcol[q], r]
+            out[kb + r] = acc
     return out
 
 
 @nb.njit(cache=True)
 def contact_step(is_sparse, nefc, nv, efc_j, rownnz, rowadr, colind, efc_type, efc_force, efc_aref, efc_r,
-                 efc_diag_a, supported_types, local_of_dof, width, k_band, a_band, lb, g, tw_lo, tw_hi, tw_c, s,
+                 efc_diag_a, supported_types, local_of_dof, width, k_band, a_band, lt, g, tw_lo, tw_hi, tw_c, s,
                  z, den, mass, m_coef, a0, a_out, force_out, max_iter, tol):
     """MuJoCo's constraint rows on the rod dofs, re-solved in the implicit metric.
 
@@ -209,18 +296,20 @@ def contact_step(is_sparse, nefc, nv, efc_j, rownnz, rowadr, colind, efc_type, e
     a = a0.copy()
     if any_ext:
         e = ext.copy()
-        sm_solve_into(lb, g, tw_lo, tw_hi, tw_c, s, z, den, e)
+        sm_solve_into(lt, g, tw_lo, tw_hi, tw_c, s, z, den, e)
         a += e
     force_out[:] = ext
     if len(efc):
+        fptr, fcol, fval = far_rows_csr(jf)
         aref = np.empty(len(efc))
         r_over_diag = np.empty(len(efc))
         for i in range(len(efc)):
             aref[i] = efc_aref[efc[i]]
             r_over_diag[i] = efc_r[efc[i]] / efc_diag_a[efc[i]]
-        d = 1.0 / (r_over_diag * delassus_diagonal(lb, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, jf))
-        a, lam, _ = newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a, col0, jw, jf, aref, d,
-                           max_iter, tol)
-        force_out += transpose_apply_rows(col0, jw, jf, lam, n)
+        d = 1.0 / (r_over_diag * delassus_diagonal(lt, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, fptr, fcol,
+                                                   fval))
+        a, lam, _ = newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a, col0, jw, fptr, fcol, fval,
+                           aref, d, max_iter, tol)
+        force_out += transpose_apply_all(col0, jw, fptr, fcol, fval, lam, n)
     a_out[:] = a
     return 1

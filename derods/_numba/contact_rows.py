@@ -199,30 +199,3 @@ def efc_triplets(is_sparse, nefc, nv, efc_j, rownnz, rowadr, colind):
             val[q] = efc_j[p]
             q += 1
     return row, col, val
-
-
-@nb.njit(cache=True)
-def apply_rows(col0, jw, jf, a):
-    """J a over banded rows (first) and far rows, shape (k_b + k_f,)."""
-    kb = len(col0)
-    out = np.empty(kb + jf.shape[0])
-    out[:kb] = rows_apply(col0, jw, a)
-    for r in range(jf.shape[0]):
-        acc = 0.0
-        for j in range(jf.shape[1]):
-            acc += jf[r, j] * a[j]
-        out[kb + r] = acc
-    return out
-
-
-@nb.njit(cache=True)
-def transpose_apply_rows(col0, jw, jf, lam, n):
-    """J^T lam over banded and far rows, shape (n,)."""
-    kb = len(col0)
-    out = rows_transpose_apply(col0, jw, lam[:kb], n)
-    for r in range(jf.shape[0]):
-        lr = lam[kb + r]
-        if lr != 0.0:
-            for j in range(n):
-                out[j] += jf[r, j] * lr
-    return out

@@ -16,8 +16,8 @@ from .banded import cholesky_into, matvec_into, solve_into
 
 
 @nb.njit(cache=True)
-def factor_system(k_band, mass, m_coef, s, a_band, lb, g, tw_lo, tw_hi, tw_c, z, den):
-    """a_band = s k_band + diag(m_coef mass); lb its Cholesky factor; for each twist term
+def factor_system(k_band, mass, m_coef, s, a_band, lt, g, tw_lo, tw_hi, tw_c, z, den):
+    """a_band = s k_band + diag(m_coef mass); lt its Cholesky factor (n, rows); for each twist term
     i: z[lo_i:hi_i] = B^-1 g_i (block-local), den_i = 1 + s c_i g_i.z_i."""
     rows, n = k_band.shape
     for d in range(rows):
@@ -25,24 +25,24 @@ def factor_system(k_band, mass, m_coef, s, a_band, lb, g, tw_lo, tw_hi, tw_c, z,
             a_band[d, j] = s * k_band[d, j]
     for j in range(n):
         a_band[0, j] += m_coef * mass[j]
-    cholesky_into(a_band, lb)
+    cholesky_into(a_band, lt)
     for i in range(len(tw_lo)):
         lo, hi = tw_lo[i], tw_hi[i]
         acc = 0.0
         for j in range(lo, hi):
             z[j] = g[j]
-        solve_into(lb, z, lo, hi)
+        solve_into(lt, z, lo, hi)
         for j in range(lo, hi):
             acc += g[j] * z[j]
         den[i] = 1.0 + s * tw_c[i] * acc
 
 
 @nb.njit(cache=True)
-def sm_solve_into(lb, g, tw_lo, tw_hi, tw_c, s, z, den, x):
+def sm_solve_into(lt, g, tw_lo, tw_hi, tw_c, s, z, den, x):
     """x <- A^-1 x in place: a banded solve, then one Sherman-Morrison update per twist
     term within its rod's range (A's band is block diagonal)."""
     n = x.shape[0]
-    solve_into(lb, x, 0, n)
+    solve_into(lt, x, 0, n)
     for i in range(len(tw_lo)):
         lo, hi = tw_lo[i], tw_hi[i]
         gx = 0.0
@@ -77,7 +77,7 @@ def gather_dofs(per_vertex, free_vertex, out):
 
 @nb.njit(cache=True)
 def unconstrained_step(k_band, grad, g_tw, coef, rod_tw, tw_lo, tw_hi, tw_c, free_vertex, free_body, dofs,
-                       mass, qvel, xfrc_applied, gravity, h, mass_damping, stiffness_damping, a_band, lb, g,
+                       mass, qvel, xfrc_applied, gravity, h, mass_damping, stiffness_damping, a_band, lt, g,
                        z, den, v, other, rhs, kv, a0):
     """The implicit step without contact, for all rods: assemble and factor A, solve
     A a0 = F - a_m M v - (b + h) K v with F = -grad + gravity + the user's xfrc_applied.
@@ -85,7 +85,7 @@ def unconstrained_step(k_band, grad, g_tw, coef, rod_tw, tw_lo, tw_hi, tw_c, fre
     k_band (rows, n) [N/m]: the elastic band over the free dofs. grad, g_tw (n_vertices, 3);
     coef (n_rods,); rod_tw (n_tw,): the rod of each twist term. free_vertex, free_body
     (n / 3,): vertex and MuJoCo body of each place; dofs (n,): MuJoCo dofs; mass (n,) [kg];
-    qvel, xfrc_applied: MuJoCo's arrays; gravity (3,) [m/s^2]. Out: a_band, lb, g, z,
+    qvel, xfrc_applied: MuJoCo's arrays; gravity (3,) [m/s^2]. Out: a_band, lt, g, z,
     den (the factored system), v (n,) [m/s], other (n,) [N] (gravity + user force),
     a0 (n,) [m/s^2]; rhs, kv are scratch.
     """
@@ -94,7 +94,7 @@ def unconstrained_step(k_band, grad, g_tw, coef, rod_tw, tw_lo, tw_hi, tw_c, fre
     for i in range(len(rod_tw)):
         tw_c[i] = coef[rod_tw[i]]
     gather_dofs(g_tw, free_vertex, g)
-    factor_system(k_band, mass, 1.0 + h * mass_damping, s, a_band, lb, g, tw_lo, tw_hi, tw_c, z, den)
+    factor_system(k_band, mass, 1.0 + h * mass_damping, s, a_band, lt, g, tw_lo, tw_hi, tw_c, z, den)
     for p in range(len(free_vertex)):
         b = free_body[p]
         vtx = free_vertex[p]
@@ -107,7 +107,7 @@ def unconstrained_step(k_band, grad, g_tw, coef, rod_tw, tw_lo, tw_hi, tw_c, fre
     for k in range(n):
         rhs[k] -= (stiffness_damping + h) * kv[k]
         a0[k] = rhs[k]
-    sm_solve_into(lb, g, tw_lo, tw_hi, tw_c, s, z, den, a0)
+    sm_solve_into(lt, g, tw_lo, tw_hi, tw_c, s, z, den, a0)
 
 
 @nb.njit(cache=True)

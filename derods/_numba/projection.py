@@ -27,7 +27,7 @@ def project_rod(x, inv_mass, rest_len, tol, max_iter):
     c = np.empty(m)
     gvec = np.empty((m, 3))
     ab = np.zeros((2, m))
-    lb = np.zeros((2, m))
+    lt = np.zeros((m, 2))
     for it in range(max_iter + 1):
         worst = 0.0
         for j in range(m):
@@ -50,8 +50,8 @@ def project_rod(x, inv_mass, rest_len, tol, max_iter):
                              + gvec[j, 2] * gvec[j + 1, 2]) * w1
             else:
                 ab[1, j] = 0.0
-        cholesky_into(ab, lb)
-        solve_into(lb, c, 0, m)  # c <- dlambda
+        cholesky_into(ab, lt)
+        solve_into(lt, c, 0, m)  # c <- dlambda
         for j in range(m):
             for a in range(3):
                 f = gvec[j, a] * c[j]

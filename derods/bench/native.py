@@ -104,8 +104,10 @@ def _compose(spec: mujoco.MjSpec, integrator, dt: float, gravity, scene: str | N
     spec.option.timestep = dt
     spec.option.gravity = np.asarray(gravity, dtype=float)
     if scene is not None:
-        spec.attach(mujoco.MjSpec.from_file(str(MJCF_DIR / f"{scene}.xml")), frame=spec.worldbody.add_frame(),
-                    prefix="scene_")
+        child = mujoco.MjSpec.from_file(str(MJCF_DIR / f"{scene}.xml"))
+        # Only the scene's geoms matter; its own options would conflict with the rod's.
+        child.option.integrator, child.option.timestep = integrator, dt
+        spec.attach(child, frame=spec.worldbody.add_frame(), prefix="scene_")
     return spec
 
 

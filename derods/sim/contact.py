@@ -34,7 +34,7 @@ import mujoco
 import numpy as np
 
 from .._numba import contact as _k
-from .._numba.contact_rows import apply_rows, rows_band, transpose_apply_rows
+from .._numba.contact_rows import rows_band
 from ..stencil import XX_BANDWIDTH
 from .implicit import ImplicitSystem
 
@@ -85,17 +85,19 @@ class Rows:
     def n_banded(self) -> int:
         return len(self.col0)
 
-    def _jf(self, n: int) -> np.ndarray:
-        return self.jf if self.jf.shape[0] else np.zeros((0, n))
+    def far_csr(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The far rows as CSR (row pointers, columns, values), for n local dofs."""
+        return _k.far_rows_csr(self.jf if self.jf.shape[0] else np.zeros((0, n)))
 
     def apply(self, a: np.ndarray) -> np.ndarray:
         """J a for every row, shape (k,)."""
         a = np.ascontiguousarray(a, dtype=float)
-        return apply_rows(self.col0, self.jw, self._jf(len(a)), a)
+        return _k.apply_all(self.col0, self.jw, *self.far_csr(len(a)), a)
 
     def transpose_apply(self, lam: np.ndarray, n: int) -> np.ndarray:
         """J^T lam, shape (n,)."""
-        return transpose_apply_rows(self.col0, self.jw, self._jf(n), np.ascontiguousarray(lam, dtype=float), n)
+        return _k.transpose_apply_all(self.col0, self.jw, *self.far_csr(n), np.ascontiguousarray(lam, dtype=float),
+                                      n)
 
     def band(self, weights: np.ndarray, n: int) -> np.ndarray:
         """Lower band (9, n) of J_b^T diag(weights) J_b over the banded rows."""
@@ -112,8 +114,8 @@ class Rows:
         whose diagonal needs, for banded rows, only the entries of A^-1 inside
         the band, and for far rows one solve each.
         """
-        diag = _k.delassus_diagonal(system.lb, system.g, system.tw_lo, system.tw_hi, system.tw_c, system.s,
-                                    system.z, system.den, self.col0, self.jw, self._jf(system.n))
+        diag = _k.delassus_diagonal(system.lt, system.g, system.tw_lo, system.tw_hi, system.tw_c, system.s,
+                                    system.z, system.den, self.col0, self.jw, *self.far_csr(system.n))
         self.d = 1.0 / (self.r_over_diag * diag)
 
 
@@ -154,7 +156,7 @@ def solve(system: ImplicitSystem, a0: np.ndarray, rows: Rows, max_iter: int = MA
     """
     return _k.newton(system.k_band, system.a_band, system.g, system.tw_lo, system.tw_hi, system.tw_c, system.s,
                      system.mass, system.m_coef, np.ascontiguousarray(a0, dtype=float), rows.col0, rows.jw,
-                     rows._jf(system.n), np.ascontiguousarray(rows.aref, dtype=float),
+                     *rows.far_csr(system.n), np.ascontiguousarray(rows.aref, dtype=float),
                      np.ascontiguousarray(rows.d, dtype=float), max_iter, tol)
 
 
@@ -182,7 +184,7 @@ class ContactStep:
             touched = _k.contact_step(
                 self.is_sparse, nefc, self.nv, data.efc_J, data.efc_J_rownnz, data.efc_J_rowadr,
                 data.efc_J_colind, data.efc_type, data.efc_force, data.efc_aref, data.efc_R, data.efc_diagA,
-                SUPPORTED, self.local_of_dof, WINDOW, system.k_band, system.a_band, system.lb, system.g,
+                SUPPORTED, self.local_of_dof, WINDOW, system.k_band, system.a_band, system.lt, system.g,
                 system.tw_lo, system.tw_hi, system.tw_c, system.s, system.z, system.den, system.mass,
                 system.m_coef, a0, self.a, self.force, MAX_ITER, TOL)
             if touched:

@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._numba import implicit as _k
-from .._numba.banded import band_cholesky, banded_inverse_band, matvec_into, solve_into
+from .._numba.banded import inverse_band, matvec_into
 from ..stencil import XX_BANDWIDTH
 
 
@@ -48,8 +48,9 @@ class ImplicitSystem:
     Arrays (n dofs, T twist terms): k_band (rows, n), the band of K [N/m]; g (n,), the
     twist directions of all rods laid end to end [1/m]; tw_lo, tw_hi (T,), each twist
     term's dof range; tw_c (T,), its stiffness c [N m]; mass (n,) [kg]. After
-    :meth:`factor`: a_band, lb (A's band and its Cholesky factor), z (n,) = B^-1 g per
-    range, den (T,) = 1 + s c g.z.
+    :meth:`factor`: a_band (A's band), lt (its Cholesky factor, column by column, shape
+    (n, rows), see :mod:`derods._numba.banded`), z (n,) = B^-1 g per range, den (T,) =
+    1 + s c g.z.
     """
 
     def __init__(self, h: float, n: int, mass: np.ndarray, mass_damping: float = 0.0,
@@ -64,7 +65,7 @@ class ImplicitSystem:
         self.m_coef = 1.0 + self.h * self.mass_damping  # weight of M in A
         self.k_band = np.zeros((band_rows, self.n))
         self.a_band = np.zeros((band_rows, self.n))
-        self.lb = np.zeros((band_rows, self.n))
+        self.lt = np.zeros((self.n, band_rows))
         self.g = np.zeros(self.n)
         self.z = np.zeros(self.n)
         self.tw_lo = np.asarray(tw_lo, dtype=np.int64)
@@ -92,7 +93,7 @@ class ImplicitSystem:
 
     def factor(self) -> None:
         """Assemble A's band, factor it, and prepare the Sherman-Morrison terms."""
-        _k.factor_system(self.k_band, self.mass, self.m_coef, self.s, self.a_band, self.lb, self.g,
+        _k.factor_system(self.k_band, self.mass, self.m_coef, self.s, self.a_band, self.lt, self.g,
                          self.tw_lo, self.tw_hi, self.tw_c, self.z, self.den)
 
     def k_matvec(self, w: np.ndarray) -> np.ndarray:
@@ -114,7 +115,7 @@ class ImplicitSystem:
         """A^-1 rhs, rhs shape (n,) or (n, m)."""
         cols = np.array(np.atleast_2d(rhs.T), dtype=float)  # (m, n), one solve per row
         for c in cols:
-            _k.sm_solve_into(self.lb, self.g, self.tw_lo, self.tw_hi, self.tw_c, self.s, self.z, self.den, c)
+            _k.sm_solve_into(self.lt, self.g, self.tw_lo, self.tw_hi, self.tw_c, self.s, self.z, self.den, c)
         return cols[0] if rhs.ndim == 1 else cols.T
 
     def inverse_diagonal_terms(self) -> tuple[np.ndarray, list[tuple[np.ndarray, float]]]:
@@ -130,14 +131,4 @@ class ImplicitSystem:
             lo, hi = self.tw_lo[i], self.tw_hi[i]
             z[lo:hi] = self.z[lo:hi]
             corrections.append((z, self.s * self.tw_c[i] / self.den[i]))
-        return banded_inverse_band(self.lb), corrections
-
-
-def banded_solve(lb: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """Solve with a lower banded Cholesky factor lb (rows, n); rhs shape (n,)."""
-    x = np.array(rhs, dtype=float)
-    solve_into(lb, x, 0, len(x))
-    return x
-
-
-__all__ = ["ImplicitSystem", "band_cholesky", "banded_matvec", "banded_solve", "restrict_band"]
+        return inverse_band(self.lt, self.lt.shape[1]), corrections

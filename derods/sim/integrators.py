@@ -170,7 +170,7 @@ class Step:
         lay, t, s = self.layout, self.terms, self.system
         _imp.unconstrained_step(t.band, t.grad, t.g_tw, t.coef, self.rod_tw, s.tw_lo, s.tw_hi, s.tw_c,
                                 lay.free_vertex, lay.free_body, lay.dofs, lay.mass, self.qvel, self.xfrc_applied,
-                                self.gravity, self.h, self.mass_damping, self.stiffness_damping, s.a_band, s.lb,
+                                self.gravity, self.h, self.mass_damping, self.stiffness_damping, s.a_band, s.lt,
                                 s.g, s.z, s.den, self.v, self.other, self._rhs, self._kv, self.a0)
 
     def step(self) -> None:  # pragma: no cover - every mode has its own
