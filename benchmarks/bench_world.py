@@ -1,105 +1,193 @@
 """Per-step cost of derods in MuJoCo against MuJoCo's native 1D flexcomp, same run.
 
-The same horizontal cantilever (L = 1 m, r = 1 cm, rho = 1000 kg/m^3, E = 1e8 Pa,
-clamped, under gravity) at the same n and dt = 1e-2, two ways:
+Each case is built twice from the same description, as derods ``World`` (implicit
+DER step, MuJoCo for contact and integration) and as native flexcomps
+(``<elasticity young>``, pinned first edge for a clamp, edge equality solref 1e-4,
+``discrete`` integrator: the setting the native baselines found stable at dt = 1e-2;
+see :mod:`derods.bench.native`). Runs alternate derods / native / derods ...,
+``--repeat`` times; each run gives the median of its timed steps, and a case
+reports the median over its runs. The VM's speed drifts: the ratio derods /
+native within a row is the figure to read, not the microseconds.
 
-* derods: ``derods.World``, implicit DER step (stretch + bending), MuJoCo for
-  integration;
-* native: MuJoCo's 1D flexcomp with ``<elasticity young>`` (its own DER),
-  ``pin 0 1`` clamp, edge equality (solref 1e-4), ``discrete`` integrator:
-  the setting the native baselines found stable at dt = 1e-2.
+Cases:
 
-Each is warmed up for 200 steps, then 2000 steps are timed one by one; the
-median is reported, and the best median of --repeat interleaved runs (the VM's
-speed drifts, so compare within a row). A second table shows what pruning
-saves: the same rod with work it does not need (twist solve forced on by
-clamping both ends; contacts against a distant floor forced on) against the
-world that skips it.
+* cantilever n = 20, 50, 200, 1000: L = 1 m, r = 1 cm, rho = 1000 kg/m^3,
+  E = 1e8 Pa, clamped, under gravity, dt = 1e-2 s (mass damping 6 / s).
+* drop n = 50 on the box edge and on the floor: the ``drop`` case's rod (E = 1e7 Pa,
+  dropped from 0.5 m, mass damping 2 / s), dt = 1e-2 s; every step of 3 s timed
+  (falling, impact, lying).
+* demo: the main job's world (``derods drop`` defaults: 3 rods x 40 edges dropped
+  on each other onto the box, dt = 2e-3 s), every step of 4 s timed.
+* R = 1, 10, 100 rods of 32 vertices (h = 1 cm, r = 2 mm, E = 1e8 Pa, dt = 1e-2 s),
+  hanging from a clamp and lying on the floor; the last line gives the marginal
+  cost of one more rod, (t(100) - t(10)) / 90.
 
-Run: .venv/bin/python benchmarks/bench_world.py [--repeat 3] [--steps 2000]
-Targets (MuJoCo coupling issue): derods/native <= 0.6 at n = 200, <= 2 at n = 20.
+Run: .venv/bin/python benchmarks/bench_world.py [--repeat 3] [--quick] [--json FILE]
+Targets (issue "one compiled step"): ratio <= 1.0 at n = 20 and <= 0.45 at n = 200,
+<= 0.8 on the box edge and <= 1.0 on the floor; <= 40 us per extra hanging rod.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import time
 
 import mujoco
 import numpy as np
 
 import derods
-from derods import shapes
-from derods import World
-
-E, R, RHO, L, DT = 1e8, 0.01, 1000.0, 1.0, 1e-2
-
-
-def native_step(n: int):
-    pts = " ".join(f"{i * L / n:.9g} 0 1" for i in range(n + 1))
-    elem = " ".join(f"{i} {i + 1}" for i in range(n))
-    xml = f"""<mujoco><option timestep="{DT}" integrator="discrete"/><worldbody>
-      <flexcomp name="rod" type="direct" dim="1" point="{pts}" element="{elem}" radius="{R}"
-                mass="{RHO * np.pi * R * R * L}">
-        <pin id="0 1"/><edge equality="true" solref="0.0001 1"/><contact selfcollide="none"/>
-        <elasticity young="{E}" poisson="0.49" damping="0"/>
-      </flexcomp></worldbody></mujoco>"""
-    m = mujoco.MjModel.from_xml_string(xml)
-    d = mujoco.MjData(m)
-    return lambda: mujoco.mj_step(m, d)
+from derods import World, shapes
+from derods.apps.drop import DropParams, build_world
+from derods.bench import CaseParams, native
+from derods.bench.backends import BACKENDS
 
 
-def derods_step(n: int, end: str = "free", floor: bool = False):
-    scene = None
-    if floor:
-        scene = mujoco.MjSpec()
-        g = scene.worldbody.add_geom()
-        g.type = mujoco.mjtGeom.mjGEOM_PLANE
-        g.size = [5, 5, 0.1]
-        g.pos = [0, 0, -10]  # far below: contacts are checked, none are found
-    w = World(scene, dt=DT, mass_damping=6.0, integrator="implicitfast")
-    rod = derods.Rod(shapes.cantilever(L, n, start=(0, 0, 1)), derods.Material(young=E, radius=R, density=RHO))
-    if end == "clamp":
-        rod = rod.with_boundary(derods.TwistBoundary("clamped", 0.0, 0.0))
-    w.add_rod(rod, start="clamp", end=end)
-    w.compile()
-    return lambda: w.step()
+class MuJoCoModel:
+    """A bare MuJoCo model and data with a step(); how the native side is timed."""
+
+    def __init__(self, model, data):
+        self.model, self.data = model, data
+
+    def step(self, n: int = 1) -> None:
+        for _ in range(n):
+            mujoco.mj_step(self.model, self.data)
 
 
-def median_us(step, steps: int) -> float:
-    for _ in range(200):
-        step()
+def median_us(sim, steps: int, warm: int) -> float:
+    sim.step(warm)
     t = np.empty(steps)
     for k in range(steps):
         t0 = time.perf_counter()
-        step()
+        sim.step()
         t[k] = time.perf_counter() - t0
     return float(np.median(t)) * 1e6
 
 
+# --- the cases: (derods builder, native builder, steps timed, warm-up steps) ---------------------
+
+def cantilever(n: int):
+    def build(backend):
+        p = CaseParams(n_edges=n, young=1e8, backend=backend)
+        sim, _ = BACKENDS[backend].cantilever(p, p.gravity, 6.0)
+        return sim
+    steps = 200 if n >= 1000 else 500
+    return lambda: build("der"), lambda: build("flex"), steps, 100
+
+
+def drop(scene: str):
+    def build(backend):
+        p = CaseParams(n_edges=50, young=1e7, backend=backend)
+        x = shapes.straight(p.length, p.n_edges)
+        x -= x.mean(axis=0)
+        x += (0.15, 0.0, 0.7) if scene == "box" else (0.0, 0.0, 0.5)
+        return BACKENDS[backend].free_rod(p, x, scene, 2.0)
+    return lambda: build("der"), lambda: build("flex"), 300, 0
+
+
+def demo():
+    params = DropParams()
+
+    def native_demo():
+        world = build_world(params)  # the same placement, read back from derods' world
+        rods = [world.positions(i) for i in range(params.rods)]
+        mat = params.material
+        p = CaseParams(n_edges=params.n_edges, dt=params.dt, young=mat.young, radius=mat.radius,
+                       density=mat.density, length=params.length, backend="flex")
+        return MuJoCoModel(*native.flex_world(rods, p, scene=params.scene, mass_damping=params.mass_damping))
+
+    steps = int(round(params.seconds / params.dt))
+    return lambda: build_world(params), native_demo, steps, 0
+
+
+STRAND = dict(n_edges=31, length=0.31, radius=0.002, young=1e8)
+
+
+def strands(count: int, lying: bool):
+    """count rods of 32 vertices, 2 cm apart: hanging from a clamp (straight down from
+    z = 1 m), or lying on the floor along x."""
+    def rest(i):
+        if lying:
+            return shapes.straight(STRAND["length"], STRAND["n_edges"], start=(0.0, 0.02 * i, STRAND["radius"]))
+        return shapes.cantilever(STRAND["length"], STRAND["n_edges"], start=(0.02 * i, 0.0, 1.0),
+                                 direction=(0.0, 0.0, -1.0))
+
+    def der():
+        p = CaseParams(**STRAND)
+        world = World(native.MJCF_DIR / "floor.xml" if lying else None, dt=p.dt, mass_damping=2.0,
+                      gravity=(0.0, 0.0, -p.gravity))
+        for i in range(count):
+            world.add_rod(derods.Rod(rest(i), p.material, natural_curvature=not lying), f"s{i}",
+                          start="free" if lying else "clamp")
+        world.compile()
+        return world
+
+    def flex():
+        p = CaseParams(**STRAND, backend="flex")
+        rods = [rest(i) for i in range(count)]
+        if not lying:  # the native clamp pins the first edge of a rod starting at the clamp
+            rods = [shapes.straight(p.length, p.n_edges, start=(0.02 * i, 0.0, 1.0), direction=(0.0, 0.0, -1.0))
+                    for i in range(count)]
+        return MuJoCoModel(*native.flex_world(rods, p, pinned=() if lying else (0, 1),
+                                              scene="floor" if lying else None, mass_damping=2.0))
+
+    return der, flex, 60 if count >= 100 else 150, 20
+
+
+def run_case(name, case, repeat: int, out: dict) -> None:
+    der_build, flex_build, steps, warm = case
+    ours, theirs, builds = [], [], {"der": [], "flex": []}
+    for r in range(repeat):
+        order = (("der", der_build, ours), ("flex", flex_build, theirs))
+        for label, build, sink in (order if r % 2 == 0 else order[::-1]):
+            t0 = time.perf_counter()
+            sim = build()
+            builds[label].append(time.perf_counter() - t0)
+            sink.append(median_us(sim, steps, warm))
+    a, b = float(np.median(ours)), float(np.median(theirs))
+    out[name] = {"derods_us": a, "flex_us": b, "ratio": a / b, "runs_derods": ours, "runs_flex": theirs,
+                 "build_s_derods": float(np.median(builds["der"])), "build_s_flex": float(np.median(builds["flex"]))}
+    spread = f"{min(ours):.0f}-{max(ours):.0f} / {min(theirs):.0f}-{max(theirs):.0f}"
+    print(f"{name:28s} {a:10.0f} {b:10.0f} {a / b:7.2f}   ({spread})", flush=True)
+
+
 def main(argv=None):
-    ap = argparse.ArgumentParser(description="derods vs native MuJoCo flexcomp, per-step cost")
-    ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--steps", type=int, default=2000)
+    ap = argparse.ArgumentParser(description="derods vs MuJoCo's native flexcomp, per-step cost, same run")
+    ap.add_argument("--repeat", type=int, default=3, help="runs per case and backend (default 3)")
+    ap.add_argument("--quick", action="store_true", help="skip n = 1000, the demo and R = 100")
+    ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
     args = ap.parse_args(argv)
-    print(f"mujoco {mujoco.__version__}, derods {derods.__version__}; cantilever E = {E:g} Pa, dt = {DT:g} s")
-    print(f"{'n':>5} {'derods us':>10} {'native us':>10} {'ratio':>7}  target")
-    for n in (20, 50, 200):
-        ours, native = [], []
-        for _ in range(args.repeat):
-            ours.append(median_us(derods_step(n), args.steps))
-            native.append(median_us(native_step(n), args.steps))
-        a, b = min(ours), min(native)
-        target = {20: "<= 2", 200: "<= 0.6"}.get(n, "")
-        print(f"{n:>5} {a:10.1f} {b:10.1f} {a / b:7.2f}  {target}")
-    print("\nwhat pruning saves (n = 200, median us per step)")
-    base = min(median_us(derods_step(200), args.steps) for _ in range(args.repeat))
-    tw = min(median_us(derods_step(200, end="clamp"), args.steps) for _ in range(args.repeat))
-    fl = min(median_us(derods_step(200, floor=True), args.steps) for _ in range(args.repeat))
-    print(f"  free end (no twist term), no obstacles: {base:8.1f}")
-    print(f"  both ends clamped (twist term + solve): {tw:8.1f}  (+{tw - base:.1f})")
-    print(f"  a floor to check contacts against:      {fl:8.1f}  (+{fl - base:.1f})")
+    print(f"mujoco {mujoco.__version__}, derods {derods.__version__}; median us per step over "
+          f"{args.repeat} interleaved runs each (min-max of the runs in brackets)")
+    print(f"{'case':28s} {'derods us':>10s} {'native us':>10s} {'ratio':>7s}")
+    out = {}
+    cases = [(f"cantilever n = {n}", cantilever(n)) for n in ((20, 50, 200) if args.quick else (20, 50, 200, 1000))]
+    cases += [("drop n = 50, box edge", drop("box")), ("drop n = 50, floor", drop("floor"))]
+    if not args.quick:
+        cases.append(("demo: 3 rods x 40 on the box", demo()))
+    counts = (1, 10) if args.quick else (1, 10, 100)
+    for lying in (False, True):
+        for count in counts:
+            cases.append((f"R = {count} {'lying' if lying else 'hanging'} x 32", strands(count, lying)))
+    for name, case in cases:
+        run_case(name, case, args.repeat, out)
+    if not args.quick:
+        print("\nmarginal cost of one more rod of 32 vertices, (t(100) - t(10)) / 90 [us]:")
+        for kind in ("hanging", "lying"):
+            t10, t100 = out[f"R = 10 {kind} x 32"], out[f"R = 100 {kind} x 32"]
+            d = (t100["derods_us"] - t10["derods_us"]) / 90
+            f = (t100["flex_us"] - t10["flex_us"]) / 90
+            out[f"marginal {kind}"] = {"derods_us": d, "flex_us": f}
+            print(f"  {kind:8s} derods {d:8.1f}   native {f:8.1f}")
+        print("\nbuild time [s] (median): " + "; ".join(
+            f"{k}: {v['build_s_derods']:.2f} / {v['build_s_flex']:.2f}" for k, v in out.items()
+            if k.startswith("R = ") and "build_s_derods" in v))
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(out, f, indent=1)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -32,30 +32,35 @@ from ..geometry import CHI_MIN
 
 
 @nb.njit(cache=True, inline="always")
-def _add(ab, place, vi, vj, r, c, v):
-    """Add v to H[3 p_i + r, 3 p_j + c] of a symmetric matrix kept as its lower band,
-    p = place[v] the vertex's place in the solve order (nothing for a held vertex,
-    place -1). Of a diagonal block (vi == vj) only the lower triangle is added; an
-    off-diagonal block lands in the lower half, transposed if its vertices come in the
-    other order (each such block is added for one order only)."""
+def _add_block(ab, place, vi, vj, blk):
+    """Add the 3 x 3 block blk to H[vertex vi, vertex vj] of a symmetric matrix kept as
+    its lower band, the vertices at places p = place[v] of the solve order (nothing for a
+    held vertex, place -1). Of a diagonal block (vi == vj) only the lower triangle is
+    added; an off-diagonal block lands in the lower half, transposed if its vertices come
+    in the other order (each such block is added for one order only)."""
     pi_, pj = place[vi], place[vj]
     if pi_ < 0 or pj < 0:
         return
-    row = 3 * pi_ + r
-    col = 3 * pj + c
-    if row < col:
-        if vi == vj:
-            return
-        row, col = col, row
-    if row - col >= ab.shape[0]:
+    if abs(pi_ - pj) * 3 + 2 >= ab.shape[0]:
         raise ValueError("a Hessian entry falls outside the band; check the vertex order")
-    ab[row - col, col] += v
+    if pi_ > pj:
+        for r in range(3):
+            for c in range(3):
+                ab[3 * (pi_ - pj) + r - c, 3 * pj + c] += blk[r, c]
+    elif pi_ == pj:
+        for r in range(3):
+            for c in range(r + 1):
+                ab[r - c, 3 * pj + c] += blk[r, c]
+    else:
+        for r in range(3):
+            for c in range(3):
+                ab[3 * (pj - pi_) + c - r, 3 * pi_ + r] += blk[r, c]
 
 
 @nb.njit(cache=True)
 def _rod_step(x, u, t, theta, rest_len, vlen, mbar, ks, alpha, beta, closed, has_twist, clamped, anchor_last,
               theta_first, theta_last, total_twist, clamp_body, clamp_dir, theta_end, xmat, place, grad, ab,
-              g_tw, ref, le, ja, jb, hab):
+              g_tw, ref, le, ja, jb, blocks):
     """One rod (arrays are this rod's slices; u, t, theta updated in place). Returns
     (energy [J], twisting moment lam [N m], twist stiffness c [N m], largest |strain|)."""
     nv = x.shape[0]
@@ -105,9 +110,11 @@ def _rod_step(x, u, t, theta, rest_len, vlen, mbar, ks, alpha, beta, closed, has
         for r in range(3):
             for c in range(3):
                 h = (kt - kg) * t[j, r] * t[j, c] + (kg if r == c else 0.0)
-                _add(ab, place, j, j, r, c, h)
-                _add(ab, place, jn, jn, r, c, h)
-                _add(ab, place, jn, j, r, c, -h)
+                blocks[0, r, c] = h
+                blocks[1, r, c] = -h
+        _add_block(ab, place, j, j, blocks[0])
+        _add_block(ab, place, jn, jn, blocks[0])
+        _add_block(ab, place, jn, j, blocks[1])
     # Clamps on moving bodies: the clamped edge's material director turns with its body;
     # its angle from the transported reference director, unwrapped over many turns.
     for end in range(2):
@@ -175,23 +182,24 @@ def _rod_step(x, u, t, theta, rest_len, vlen, mbar, ks, alpha, beta, closed, has
             grad[vm, c] += ga - gb
             grad[vn, c] += gb
         # Gauss-Newton Hessian 2c J^T J over (a, b), mapped to the three vertices.
-        for r in range(6):
-            for c in range(6):
-                acc = 0.0
-                for i in range(3):
-                    jr = ja[i, r] if r < 3 else jb[i, r - 3]
-                    jc = ja[i, c] if c < 3 else jb[i, c - 3]
-                    acc += jr * jc
-                hab[r, c] = two_c * acc
         for r in range(3):
             for c in range(3):
-                haa, hab_, hba, hbb = hab[r, c], hab[r, c + 3], hab[r + 3, c], hab[r + 3, c + 3]
-                _add(ab, place, va, va, r, c, haa)
-                _add(ab, place, vm, vm, r, c, haa - hab_ - hba + hbb)
-                _add(ab, place, vn, vn, r, c, hbb)
-                _add(ab, place, vm, va, r, c, hba - haa)
-                _add(ab, place, vn, vm, r, c, hba - hbb)
-                _add(ab, place, vn, va, r, c, -hba)
+                haa = two_c * (ja[0, r] * ja[0, c] + ja[1, r] * ja[1, c] + ja[2, r] * ja[2, c])
+                hab_ = two_c * (ja[0, r] * jb[0, c] + ja[1, r] * jb[1, c] + ja[2, r] * jb[2, c])
+                hba = two_c * (jb[0, r] * ja[0, c] + jb[1, r] * ja[1, c] + jb[2, r] * ja[2, c])
+                hbb = two_c * (jb[0, r] * jb[0, c] + jb[1, r] * jb[1, c] + jb[2, r] * jb[2, c])
+                blocks[0, r, c] = haa
+                blocks[1, r, c] = haa - hab_ - hba + hbb
+                blocks[2, r, c] = hbb
+                blocks[3, r, c] = hba - haa
+                blocks[4, r, c] = hba - hbb
+                blocks[5, r, c] = -hba
+        _add_block(ab, place, va, va, blocks[0])
+        _add_block(ab, place, vm, vm, blocks[1])
+        _add_block(ab, place, vn, vn, blocks[2])
+        _add_block(ab, place, vm, va, blocks[3])
+        _add_block(ab, place, vn, vm, blocks[4])
+        _add_block(ab, place, vn, va, blocks[5])
         if not has_twist:
             continue
         # Reference twist: angle from the transport of u^k (ta -> tb) to u^{k+1} about tb.
@@ -266,7 +274,7 @@ def rods_step(x, v_off, e_off, j_off, rest_len, vlen, mbar, ks, alpha, beta, com
     le = np.empty(max_nv)
     ja = np.empty((3, 3))
     jb = np.empty((3, 3))
-    hab = np.empty((6, 6))
+    blocks = np.empty((6, 3, 3))
     ab[:] = 0.0
     first_bad = -1
     for i in range(n_rods):
@@ -279,7 +287,7 @@ def rods_step(x, v_off, e_off, j_off, rest_len, vlen, mbar, ks, alpha, beta, com
             x[v0:v1], u[e0:e1], t[e0:e1], theta[e0:e1], rest_len[e0:e1], vlen[j0:j1], mbar[j0:j1], ks[i],
             alpha[i], beta[i], closed[i], has_twist[i], clamped[i], anchor_last[i], theta_first[i],
             theta_last[i], total_twist[i], clamp_body[i], clamp_dir[i], theta_end[i], xmat, place[v0:v1],
-            grad[v0:v1], ab, g_tw[v0:v1], ref, le, ja, jb, hab)
+            grad[v0:v1], ab, g_tw[v0:v1], ref, le, ja, jb, blocks)
         energy[i] = e
         lam[i] = lm
         coef[i] = cf

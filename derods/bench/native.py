@@ -207,6 +207,30 @@ def flex_rod(points: np.ndarray, p, pinned=(), gravity=None, closed: bool = Fals
     return NativeRod(spec.compile(), mass_damping), {"poisson": nu, "poisson_clipped": clipped}
 
 
+def flex_world(rods: list[np.ndarray], p, pinned=(), gravity=None, scene: str | None = None,
+               mass_damping: float = 0.0) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """Several flexcomp rods (points [m], each (n_i + 1, 3)) in one model, set up as
+    :func:`flex_rod` sets up one (rod i's names prefixed "r<i>_"). For timing many rods
+    against derods; returns the compiled model and its data."""
+    mat = p.material
+    nu, _ = poisson_for(mat.young, mat.shear_modulus)
+    grav = (0.0, 0.0, -p.gravity) if gravity is None else gravity
+    spec = _compose(mujoco.MjSpec(), mujoco.mjtIntegrator.mjINT_DISCRETE, p.dt, grav, scene)
+    for i, points in enumerate(rods):
+        length = float(np.sum(np.linalg.norm(np.diff(points, axis=0), axis=1)))
+        mass = mat.density * math.pi * mat.radius**2 * length
+        child = flex_spec(points, mat.radius, mass, mat.young, nu, pinned=pinned, dt=p.dt, gravity=grav)
+        spec.attach(child, frame=spec.worldbody.add_frame(), prefix=f"r{i}_")
+    model = spec.compile()
+    if mass_damping:
+        for b in range(model.nbody):
+            if model.body_dofnum[b] == 3 and model.jnt_type[model.body_jntadr[b]] == mujoco.mjtJoint.mjJNT_SLIDE:
+                model.dof_damping[model.body_dofadr[b]:model.body_dofadr[b] + 3] = mass_damping * model.body_mass[b]
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    return model, data
+
+
 def cable_spec(vertices: np.ndarray, radius: float, density: float, young: float, shear: float,
                clamped: bool = True, dt: float = 1e-2, gravity=(0.0, 0.0, -9.81), joint_damping: float = 0.0,
                scene: str | None = None) -> mujoco.MjSpec:
