@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import concurrent.futures
-import json
 
 import numpy as np
 import pytest
@@ -84,12 +83,20 @@ def test_stability_case(backend):
         assert not rec["stable"] and "diverged" in rec["note"]
 
 
-def test_extreme_cases_report_an_outcome_each():
-    recs = bench.extreme(CaseParams(n_edges=16, dt=2e-3))
-    assert [r["variant"] for r in recs] == ["soft", "steel_wire", "impact", "hairpin", "edge_ratio",
-                                            "ring_20_turns"]
-    assert all(r["outcome"] in ("stable", "diverged", "NaN", "penetrated", "failed") for r in recs)
-    assert {r["variant"]: r["outcome"] for r in recs}["steel_wire"] == "stable"
+def test_extreme_cases_record_what_happened():
+    """At n = 16, dt = 2e-3 derods survives the soft rod, the steel wire, the 20 m/s impact
+    (deepest transient penetration measured 81 mm), the hairpin and the 1000:1 edges; the
+    ring twisted 20 turns is too coarse at 16 edges (2.5 turns of twist per edge) and its
+    divergence is recorded with the step and the fix (at n = 50, the report's run, it is
+    stable and its self-contact keeps it 12.6 mm from itself)."""
+    recs = {r["variant"]: r for r in bench.extreme(CaseParams(n_edges=16, dt=2e-3))}
+    assert list(recs) == ["soft", "steel_wire", "impact", "hairpin", "edge_ratio", "ring_20_turns"]
+    for variant in ("soft", "steel_wire", "impact", "hairpin", "edge_ratio"):
+        assert recs[variant]["outcome"] == "stable", recs[variant]["note"]
+    impact = float(recs["impact"]["note"].split("impact ")[1].split(" mm")[0])
+    assert 10.0 < impact < 150.0  # deeper than the radius transiently, never through the floor
+    ring = recs["ring_20_turns"]
+    assert ring["outcome"] == "diverged" and "diverged at step" in ring["note"] and "try a smaller dt" in ring["note"]
 
 
 def test_backend_missing_from_this_mujoco_is_skipped_with_a_message(capsys):

@@ -11,6 +11,7 @@ import math
 import mujoco
 import numpy as np
 import pytest
+import rods
 
 import derods
 from derods import bench, frames, geometry, shapes
@@ -21,32 +22,36 @@ from derods import World
 E, RADIUS = 1e7, 0.005
 
 
-def ring_params(beta_over_alpha: float, n: int = 50) -> CaseParams:
+def ring_material(beta_over_alpha: float) -> derods.Material:
     # For a circular section beta / alpha = G J / (E I) = 2 G / E.
-    return CaseParams(n_edges=n, young=E, radius=RADIUS, shear=beta_over_alpha * E / 2)
+    return derods.Material(young=E, radius=RADIUS, shear=beta_over_alpha * E / 2)
 
 
 @pytest.mark.parametrize("beta_over_alpha", [0.5, 1.0, 2.0])
-def test_michell_critical_twist(beta_over_alpha):
-    """Bisection on Theta at n = 50 lands within 2 % of Michell's threshold (the issue's bar;
-    measured +1.27 % for every ratio and any E, converging as 1/n^2: +3.61 % at n = 30,
-    +0.29 % at n = 100)."""
-    rec, = bench.michell(ring_params(beta_over_alpha))
-    assert rec["stable"], rec["note"]
-    assert rec["beta_over_alpha"] == pytest.approx(beta_over_alpha)
-    assert abs(rec["rel_error"]) < 0.02
-
-
-def test_ring_below_threshold_stays_planar_and_above_buckles():
-    p = ring_params(1.0)
-    mat = p.material
+def test_michell_threshold_brackets_the_critical_twist(beta_over_alpha):
+    """At n = 50 a ring twisted to 0.97 Theta_c stays planar and one twisted to 1.03
+    Theta_c buckles, for every ratio of the stiffnesses: the discrete threshold lies within
+    3 % of Michell's (the bisection of the bench's michell case measures +1.27 % for every
+    ratio and any E, converging as 1/n^2: +3.61 % at n = 30, +0.29 % at n = 100)."""
+    mat = ring_material(beta_over_alpha)
     theta_c = 2 * math.pi * math.sqrt(3) * mat.alpha / mat.beta
-    assert not bench.ring_buckles(p, 0.97 * theta_c)[0]
-    assert bench.ring_buckles(p, 1.05 * theta_c)[0]
-    # The source write-up's failed check: alpha = beta, Theta = pi stays planar.
-    p_eq = CaseParams(n_edges=50, young=E, radius=RADIUS, shear=E / 2)  # alpha = beta
-    assert p_eq.material.beta == pytest.approx(p_eq.material.alpha)
-    assert not bench.ring_buckles(p_eq, math.pi)[0]
+    assert not rods.buckles(rods.twisted_ring(mat, 50, 0.97 * theta_c), mat)
+    assert rods.buckles(rods.twisted_ring(mat, 50, 1.03 * theta_c), mat)
+
+
+def test_ring_with_alpha_equal_beta_twisted_by_pi_stays_planar():
+    """The source write-up's failed check: alpha = beta, Theta = pi (0.29 Theta_c) stays planar."""
+    mat = ring_material(1.0)
+    assert mat.beta == pytest.approx(mat.alpha)
+    assert not rods.buckles(rods.twisted_ring(mat, 50, math.pi), mat)
+
+
+def test_michell_case_of_the_bench_bisects_to_the_threshold():
+    """The harness's michell case (bisection on Theta) on derods lands within 2 % of
+    Michell's threshold at n = 50 (measured +1.27 %)."""
+    rec, = bench.michell(CaseParams(n_edges=50, young=E, radius=RADIUS, shear=E / 2))
+    assert rec["stable"], rec["note"]
+    assert abs(rec["rel_error"]) < 0.02
 
 
 def test_flex_ring_is_built_closed_twisted_and_naturally_straight():
@@ -123,6 +128,21 @@ def test_writhe_of_known_curves():
 
 def test_end_moment_curls_rod_into_a_circle():
     """End couple 2 pi alpha / L on a clamped rod closes it to within 1 % of L at n = 40
-    (REFERENCE.md case 3; measured 0.84 %, and 3.3 % / 0.21 % at n = 20 / 80: O(1/n^2))."""
-    rec, = bench.circle(CaseParams(n_edges=40, young=1e6))
-    assert rec["stable"] and rec["measured"] < 0.01
+    (REFERENCE.md case 3; measured 0.84 %, and 3.3 % / 0.21 % at n = 20 / 80: O(1/n^2)).
+    The couple is two opposite forces on the last edge's vertices, perpendicular to it in
+    the xz plane, following it as it turns; no gravity, mass damping 10 / s."""
+    mat = derods.Material(young=1e6)
+    world = rods.cantilever(mat, 40, gravity=0.0, mass_damping=10.0)
+    moment = 2 * math.pi * mat.alpha / 1.0
+    tip, pre = world.vertex_body("rod", 40), world.vertex_body("rod", 39)
+    while world.time < 300.0:
+        for _ in range(50):
+            x = world.positions()
+            e = x[-1] - x[-2]
+            force = moment / float(e @ e) * np.array([-e[2], 0.0, e[0]])
+            world.data.xfrc_applied[tip, :3] = force
+            world.data.xfrc_applied[pre, :3] = -force
+            world.step()
+        if np.max(np.abs(world.velocities())) < rods.SETTLE_SPEED:
+            break
+    assert np.linalg.norm(world.positions()[-1] - (0.0, 0.0, 1.0)) < 0.01
