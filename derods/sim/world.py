@@ -21,7 +21,6 @@ adds numerical damping of its own at large steps.
 
 from __future__ import annotations
 
-import math
 import warnings
 from dataclasses import dataclass, replace
 
@@ -31,10 +30,11 @@ import numpy as np
 from .. import frames
 from .._numba.coupling import gather_positions
 from ..rod import Rod, RodState
-from ..step import Frames, RodSet, Terms, evaluate
+from ..step import Frames, RodSet
 from .clamps import end_bodies, twist_boundary
 from .divergence import Diagnosis
 from .integrators import MODES as _STEPS
+from .integrators import explicit_dt_limit
 from .layout import END_KINDS, Layout, RodEntry, add_to_spec
 
 #: Time stepping modes of a World ("auto" picks "implicit" or "explicit").
@@ -197,7 +197,7 @@ class World:
             states.append(e.rod.advance(start, e.x0))
         fr = Frames.of(states)
         ends = end_bodies(model, data, self._entries, fr.u, fr.theta, rods.e_off, fr.theta_end)
-        self.explicit_dt_limit = self._estimate_explicit_dt(layout, rods, fr, ends, data)
+        self.explicit_dt_limit = explicit_dt_limit(self._entries, layout, rods, fr, ends, data)
         h = model.opt.timestep
         if self.requested_mode == "auto":
             self.mode = "implicit" if h > 0.5 * self.explicit_dt_limit else "explicit"
@@ -215,56 +215,6 @@ class World:
         self._step = _STEPS[self.mode](model, data, layout, self._entries, rods, fr, ends, self.mass_damping,
                                        self.stiffness_damping, diagnosis)
         self._model, self._data, self._layout = model, data, layout
-
-    def _estimate_explicit_dt(self, layout: Layout, rods: RodSet, fr: Frames, ends, data) -> float:
-        """2 / omega_max of the stiffest rod, omega_max^2 bounded by Gershgorin on M^-1 K
-        (rows of |K| over the free dofs, the twist term's c |g| sum|g| added)."""
-        if not rods.compiled.all():
-            # Rods the compiled step does not cover are bounded from their numpy band.
-            return self._estimate_explicit_dt_numpy(layout)
-        terms = Terms.empty(rods.n_rods, rods.n_vertices, layout.n, layout.band_rows)
-        copy = Frames(fr.u.copy(), fr.t.copy(), fr.theta.copy(), fr.theta_end.copy())
-        x = layout.x0.copy()
-        evaluate(rods, copy, x, layout.place, terms, ends, data.xmat)
-        ab = np.abs(terms.band)
-        row = ab.sum(axis=0)
-        for d in range(1, ab.shape[0]):
-            row[d:] += ab[d, :-d]
-        for i in range(rods.n_rods):
-            if rods.has_twist[i] and terms.coef[i] > 0:
-                lo, hi = layout.dof_off[i], layout.dof_off[i + 1]
-                g = np.abs(terms.g_tw[layout.free_vertex[lo // 3:hi // 3]].ravel())
-                row[lo:hi] += terms.coef[i] * g * g.sum()
-        w2 = np.max(row / layout.mass) if layout.n else 0.0
-        return 2.0 / math.sqrt(w2) if w2 > 0 else math.inf
-
-    def _estimate_explicit_dt_numpy(self, layout: Layout) -> float:
-        from .implicit import restrict_band
-        from ..stencil import ring_order
-
-        limit = math.inf
-        for i, e in enumerate(self._entries):
-            rod = e.rod
-            t = frames.tangents(e.x0, rod.closed)
-            st = rod.advance(RodState(e.x0, frames.bishop_frames(e.x0, rod.closed, rod.u0), t, np.zeros(len(t))),
-                             e.x0)
-            terms = rod.step_terms(st, e.x0)
-            free = np.flatnonzero(~e.fixed)
-            band = terms.hessian_banded if rod.closed else restrict_band(terms.hessian_banded, 3 * free[0],
-                                                                         3 * free[-1] + 3)
-            ab = np.abs(band)
-            row = ab.sum(axis=0)
-            for d in range(1, ab.shape[0]):
-                row[d:] += ab[d, :-d]
-            if terms.twist.c.item() != 0:
-                order = ring_order(rod.n_vertices) if rod.closed else free
-                g = np.abs(terms.twist.g[order].ravel())
-                row += terms.twist.c * g * g.sum()
-            mass = layout.mass[layout.dof_off[i]:layout.dof_off[i + 1]]
-            w2 = np.max(row / mass)
-            if w2 > 0:
-                limit = min(limit, 2.0 / math.sqrt(w2))
-        return limit
 
     # -- access --------------------------------------------------------------
     @property
