@@ -423,46 +423,55 @@ class Rod:
         return StepTerms(RodState(x, u, t, theta), d.energy, d.grad_x, self._band(d.hessian),
                          self._no_twist(theta), d.grad_theta)
 
-    def _kernel_set(self, bd: TwistBoundary):
-        """This rod (or batch) as a :class:`derods.step.RodSet` for boundary ``bd`` (cached)."""
-        from .step import RodSet
+    def _kernel_plan(self, bd: TwistBoundary, n: int):
+        """What the compiled step needs for n copies of this rod under boundary ``bd``: the
+        :class:`derods.step.RodSet`, each vertex's place in its rod's band (a ring's in
+        :func:`derods.stencil.ring_order`), one band per rod, no clamps on bodies, the
+        band's rows (cached)."""
+        from .step import EndBodies, RodSet
 
-        cache = self.__dict__.setdefault("_kernel_sets", {})
-        if bd not in cache:
-            cache[bd] = RodSet.of([self], [bd])
-        return cache[bd]
+        cache = self.__dict__.setdefault("_kernel_plans", {})
+        key = (bd, n)
+        if key not in cache:
+            nv = self.n_vertices
+            rods = RodSet.of([self] if n == int(np.prod(self.rest_x.shape[:-2], dtype=int))
+                             else [replace(self, rest_x=np.broadcast_to(self.rest_x, (n, nv, 3)).copy())], [bd])
+            order = np.arange(nv) if not self.closed else np.argsort(stencil.ring_order(nv))
+            place = np.tile(order, n).astype(np.int64)  # each rod in a band of its own
+            rows = (stencil.RING_BANDWIDTH if self.closed else stencil.XX_BANDWIDTH) + 1
+            cache[key] = (rods, place, np.arange(n, dtype=np.int64), EndBodies.none(n), np.zeros((1, 9)), rows)
+        return cache[key]
 
     def _step_terms_kernel(self, state: RodState, x: np.ndarray, bd: TwistBoundary) -> StepTerms:
-        from .step import EndBodies, Frames, Terms, evaluate
+        from .step import Frames, Terms, evaluate
 
         batch = x.shape[:-2]
         nv, ne = self.n_vertices, self.n_edges
+        n = int(np.prod(batch, dtype=int))
 
         def flat(a, *tail):
-            # (batch..., *tail) -> (n_rods * tail[0], *tail[1:]) contiguous, copying always
-            # (the kernel writes the frames in place).
-            a = np.broadcast_to(np.asarray(a, dtype=float), batch + tail)
+            # (batch..., *tail) -> (n * tail[0], *tail[1:]), a contiguous copy (the kernel
+            # writes the frames in place).
+            a = np.asarray(a, dtype=float)
+            if a.shape != batch + tail:
+                a = np.broadcast_to(a, batch + tail)
             return np.array(a.reshape((-1,) + tail[1:]), dtype=float)
 
-        rods = self._kernel_set(bd)
-        n = rods.n_rods
+        rods, place, band_of_rod, ends, xmat, rows = self._kernel_plan(bd, n)
         fr = Frames(flat(state.u, ne, 3), flat(state.t, ne, 3), flat(state.theta, ne), np.zeros((n, 2)))
-        order = np.arange(nv) if not self.closed else np.argsort(stencil.ring_order(nv))
-        place = (order[None, :] + nv * np.arange(n)[:, None]).ravel().astype(np.int64)
-        rows = (stencil.RING_BANDWIDTH if self.closed else stencil.XX_BANDWIDTH) + 1
-        out = Terms.empty(n, n * nv, 3 * n * nv, rows)
-        evaluate(rods, fr, flat(x, nv, 3), place, out, EndBodies.none(n), np.zeros((1, 9)))
+        out = Terms.empty(n, n * nv, 0, rows)
+        bands = np.empty((n, rows, 3 * nv))
+        evaluate(rods, fr, flat(x, nv, 3), place, out, ends, xmat, np.inf, bands, band_of_rod)
         shape = lambda a, *tail: a.reshape(batch + tail)  # noqa: E731
-        band = np.ascontiguousarray(out.band.reshape(rows, n, 3 * nv).transpose(1, 0, 2))
         theta = shape(fr.theta, ne)
         if "twist" in self.active_terms:
-            e_tw = np.where(out.coef > 0, 0.5 * out.lam**2 / np.where(out.coef > 0, out.coef, 1.0), 0.0)
+            e_tw = np.divide(0.5 * out.lam**2, out.coef, out=np.zeros(n), where=out.coef > 0)
             red = twist.ReducedTwist(theta, shape(out.lam), shape(e_tw), shape(out.g_tw, nv, 3),
                                      shape(out.coef))
         else:
             red = self._no_twist(theta)
         return StepTerms(RodState(x, shape(fr.u, ne, 3), shape(fr.t, ne, 3), theta), shape(out.energy),
-                         shape(out.grad, nv, 3), shape(band, rows, 3 * nv), red,
+                         shape(out.grad, nv, 3), shape(bands, rows, 3 * nv), red,
                          self._clamp_moments(red.lam, bd, batch + (ne,)))
 
     def energy(self, state: RodState) -> np.ndarray:

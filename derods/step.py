@@ -181,22 +181,29 @@ class Terms:
 
 
 def evaluate(rods: RodSet, frames: Frames, x: np.ndarray, place: np.ndarray, out: Terms,
-             ends: EndBodies, xmat: np.ndarray, strain_limit: float = np.inf) -> int:
+             ends: EndBodies, xmat: np.ndarray, strain_limit: float = np.inf, bands: np.ndarray | None = None,
+             band_of_rod: np.ndarray | None = None) -> int:
     """Advance ``frames`` to positions ``x`` and fill ``out`` (one compiled call).
 
     x: vertex positions [m], shape (n_vertices, 3). place: each vertex's place in the
     solve order (its dofs are 3 place .. 3 place + 2), -1 for a held vertex, shape
     (n_vertices,), int64. ends: clamps on moving bodies; xmat: MuJoCo's body
-    orientations (``data.xmat``), shape (n_bodies, 9). Returns the index of the first rod
-    whose edge strain is not finite or exceeds ``strain_limit``, else -1.
+    orientations (``data.xmat``), shape (n_bodies, 9). Rods the compiled step does not
+    cover (``rods.compiled`` False) are left untouched. bands, band_of_rod: where rod i's
+    Hessian goes, ``bands[band_of_rod[i]]`` (default: every rod into ``out.band``, the
+    world's one band; :meth:`derods.Rod.step_terms` gives each rod a band of its own, with
+    ``place`` local to each rod). Returns the index of the first rod whose edge strain is
+    not finite or exceeds ``strain_limit``, else -1.
     """
     from ._numba.step import rods_step
 
+    if bands is None:
+        bands, band_of_rod = out.band[None], np.zeros(rods.n_rods, dtype=np.int64)
     out.strain[:] = strain_limit
     return rods_step(x, rods.v_off, rods.e_off, rods.j_off, rods.rest_len, rods.vlen, rods.mbar, rods.ks,
                      rods.alpha, rods.beta, rods.compiled, rods.closed, rods.has_twist, rods.clamped, rods.anchor_last,
                      rods.theta_first, rods.theta_last, rods.total_twist, ends.body, ends.director,
-                     frames.theta_end, xmat, place, frames.u, frames.t, frames.theta, out.grad, out.band,
-                     out.g_tw, out.energy, out.lam, out.coef, out.strain)
+                     frames.theta_end, xmat, place, band_of_rod, frames.u, frames.t, frames.theta, out.grad,
+                     bands, out.g_tw, out.energy, out.lam, out.coef, out.strain)
 
 

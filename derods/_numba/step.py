@@ -256,16 +256,18 @@ def _rod_step(x, u, t, theta, rest_len, vlen, mbar, ks, alpha, beta, closed, has
 @nb.njit(cache=True)
 def rods_step(x, v_off, e_off, j_off, rest_len, vlen, mbar, ks, alpha, beta, compiled, closed, has_twist, clamped,
               anchor_last, theta_first, theta_last, total_twist, clamp_body, clamp_dir, theta_end, xmat,
-              place, u, t, theta, grad, ab, g_tw, energy, lam, coef, strain):
+              place, band_of_rod, u, t, theta, grad, bands, g_tw, energy, lam, coef, strain):
     """Every rod of a set, laid end to end (see :class:`derods.step.RodSet` for the
     per-rod arguments). In: positions x (n_vertices, 3) [m]; the previous frames u, t
     (n_edges, 3) and twist angles theta (n_edges,), updated in place; theta_end (n_rods, 2)
     [rad], the unwrapped angles of clamps on moving bodies, updated in place; xmat
-    (n_bodies, 9), MuJoCo's body orientations. Out: grad (n_vertices, 3) [N]; ab, the
-    lower band of the PSD Hessian over the places ``place`` (n_vertices,) [N/m], zeroed
-    here first; g_tw (n_vertices, 3) [1/m], the reduced twist term's direction; energy,
-    lam, coef, strain per rod. Returns the first rod whose largest |strain| is not
-    finite or exceeds ``strain`` on entry, else -1 (strain (n_rods,): limit in, value out)."""
+    (n_bodies, 9), MuJoCo's body orientations. Out: grad (n_vertices, 3) [N]; bands
+    (n_bands, rows, n_dofs), lower bands of the PSD Hessian [N/m], zeroed here first: rod
+    i adds to bands[band_of_rod[i]] at its vertices' places ``place`` (n_vertices,) (one
+    band for all rods in a world; one per rod for :meth:`derods.Rod.step_terms`); g_tw
+    (n_vertices, 3) [1/m], the reduced twist term's direction; energy, lam, coef, strain
+    per rod. Returns the first rod whose largest |strain| is not finite or exceeds
+    ``strain`` on entry, else -1 (strain (n_rods,): limit in, value out)."""
     n_rods = len(v_off) - 1
     max_nv = 0
     for i in range(n_rods):
@@ -275,7 +277,7 @@ def rods_step(x, v_off, e_off, j_off, rest_len, vlen, mbar, ks, alpha, beta, com
     ja = np.empty((3, 3))
     jb = np.empty((3, 3))
     blocks = np.empty((6, 3, 3))
-    ab[:] = 0.0
+    bands[:] = 0.0
     first_bad = -1
     for i in range(n_rods):
         if not compiled[i]:
@@ -287,7 +289,7 @@ def rods_step(x, v_off, e_off, j_off, rest_len, vlen, mbar, ks, alpha, beta, com
             x[v0:v1], u[e0:e1], t[e0:e1], theta[e0:e1], rest_len[e0:e1], vlen[j0:j1], mbar[j0:j1], ks[i],
             alpha[i], beta[i], closed[i], has_twist[i], clamped[i], anchor_last[i], theta_first[i],
             theta_last[i], total_twist[i], clamp_body[i], clamp_dir[i], theta_end[i], xmat, place[v0:v1],
-            grad[v0:v1], ab, g_tw[v0:v1], ref, le, ja, jb, blocks)
+            grad[v0:v1], bands[band_of_rod[i]], g_tw[v0:v1], ref, le, ja, jb, blocks)
         energy[i] = e
         lam[i] = lm
         coef[i] = cf

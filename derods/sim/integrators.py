@@ -74,6 +74,7 @@ class Step:
         self.system = ImplicitSystem(self.h, n, layout.mass, mass_damping, stiffness_damping, layout.band_rows,
                                      layout.dof_off[self.rod_tw], layout.dof_off[self.rod_tw + 1])
         self.system.k_band = self.terms.band  # the compiled step writes K's band in place
+        self._bands, self._band_of_rod = self.terms.band[None], np.zeros(rods.n_rods, dtype=np.int64)
         self.v = np.zeros(n)
         self.other = np.zeros(n)
         self.a0 = np.zeros(n)
@@ -101,7 +102,8 @@ class Step:
         if self._moving:
             mujoco.mj_kinematics(self.model, self.data)  # after mj_step, xpos shows the previous state
         x = self.positions()
-        bad = evaluate(self.rods, self.frames, x, self.layout.place, self.terms, self.ends, self.xmat, MAX_STRAIN)
+        bad = evaluate(self.rods, self.frames, x, self.layout.place, self.terms, self.ends, self.xmat, MAX_STRAIN,
+                       self._bands, self._band_of_rod)
         if bad >= 0:
             self.diagnosis.strain(bad, float(self.terms.strain[bad]), self.n_steps, self.data.time)
         if self.material:
