@@ -103,21 +103,25 @@ def inverse_band(lt, rows):
     bw = lt.shape[1] - 1
     # Z inside the factor's full band, column-major like lt: zt[j, d] = Z[j + d, j].
     zt = np.zeros((n, bw + 1))
+    scaled = np.empty(bw + 1)
     for j in range(n - 1, -1, -1):
         ljj = lt[j, 0]
         kmax = min(bw, n - 1 - j)
+        for dk in range(1, kmax + 1):
+            scaled[dk] = lt[j, dk] / ljj
         for di in range(kmax, 0, -1):
             i = j + di
             acc = 0.0
-            for dk in range(1, kmax + 1):
-                k = j + dk
-                # Z_ik with i, k > j, |i - k| < bw: stored at zt[min(i, k), |i - k|].
-                zik = zt[k, i - k] if i >= k else zt[i, k - i]
-                acc += lt[j, dk] / ljj * zik
+            # Z_ik, i = j + di, k = j + dk: below the diagonal at zt[i, dk - di] when
+            # dk >= di, else at zt[k, di - dk] (Z is symmetric; |i - k| < b).
+            for dk in range(1, di):
+                acc += scaled[dk] * zt[j + dk, di - dk]
+            for dk in range(di, kmax + 1):
+                acc += scaled[dk] * zt[i, dk - di]
             zt[j, di] = -acc
         acc = 0.0
         for dk in range(1, kmax + 1):
-            acc += lt[j, dk] / ljj * zt[j, dk]
+            acc += scaled[dk] * zt[j, dk]
         zt[j, 0] = 1.0 / (ljj * ljj) - acc
     zb = np.zeros((rows, n))
     for d in range(min(rows, bw + 1)):

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from .banded import cholesky_into, inverse_band, solve_columns
+from .banded import cholesky_into, inverse_band, solve_columns, solve_into
 from .contact_rows import efc_triplets, exact_line_search, rows_apply, rows_band, rows_diag, rows_transpose_apply
 from .contact_rows import split_rows
 from .implicit import k_matvec_into, sm_solve_into
@@ -171,7 +171,7 @@ def newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a0, col0, jw,
         # The Newton direction: -(B + twist)^-1 grad, then the far rows by Woodbury.
         for j in range(n):
             y[j, 0] = grad[j]
-        solve_columns(lt, y, 0, n, 0)
+        solve_into(lt, y[:, 0], 0, n)
         _twist_update(g, tw_lo, tw_hi, tw_c, s, ztw, y)
         n_act = 0
         for r in range(kf):
