@@ -19,8 +19,11 @@ Cases:
 * demo: the main job's world (``derods drop`` defaults: 3 rods x 40 edges dropped
   on each other onto the box, dt = 2e-3 s), every step of 4 s timed.
 * R = 1, 10, 100 rods of 32 vertices (h = 1 cm, r = 2 mm, E = 1e8 Pa, dt = 1e-2 s),
-  hanging from a clamp and lying on the floor; the last line gives the marginal
-  cost of one more rod, (t(100) - t(10)) / 90.
+  hanging from a clamp and lying on the floor; then the marginal cost of one more
+  rod, (t(100) - t(10)) / 90, and the build times.
+* pruning (derods only): the n = 200 cantilever with a free end and no obstacle,
+  against the same with both ends clamped (twist term and solve) and with a floor
+  far below (collision checks that find nothing).
 
 Run: .venv/bin/python benchmarks/bench_world.py [--repeat 3] [--quick] [--json FILE]
 Targets (issue "one compiled step"): ratio <= 1.0 at n = 20 and <= 0.45 at n = 200,
@@ -135,6 +138,38 @@ def strands(count: int, lying: bool):
     return der, flex, 60 if count >= 100 else 150, 20
 
 
+def pruned(n: int, end: str = "free", floor: bool = False):
+    """The cantilever (derods only) with work it does not need forced on: both ends clamped
+    (the twist term and its solve), or a floor far below (collision checks, no contact)."""
+    scene = None
+    if floor:
+        scene = mujoco.MjSpec()
+        scene.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+        scene.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[5, 5, 0.1], pos=[0, 0, -10])
+    world = World(scene, dt=1e-2, mass_damping=6.0)
+    rod = derods.Rod(shapes.cantilever(1.0, n, start=(0, 0, 1)), derods.Material(young=1e8))
+    if end == "clamp":
+        rod = rod.with_boundary(derods.TwistBoundary("clamped", 0.0, 0.0))
+    world.add_rod(rod, start="clamp", end=end)
+    world.compile()
+    return world
+
+
+def run_pruning(repeat: int, out: dict) -> None:
+    """What skipping unneeded work saves at n = 200, interleaved runs of the three worlds."""
+    runs = {"free end, no obstacle": [], "both ends clamped (twist)": [], "a floor 10 m below": []}
+    builders = [lambda: pruned(200), lambda: pruned(200, end="clamp"), lambda: pruned(200, floor=True)]
+    for _ in range(repeat):
+        for (label, sink), build in zip(runs.items(), builders):
+            sink.append(median_us(build(), 500, 100))
+    base = float(np.median(runs["free end, no obstacle"]))
+    print("\nwhat skipping unneeded work saves (derods, cantilever n = 200, median us per step)")
+    for label, sink in runs.items():
+        t = float(np.median(sink))
+        out[f"pruning: {label}"] = {"derods_us": t}
+        print(f"  {label:28s} {t:8.0f}  ({t - base:+.0f})")
+
+
 def run_case(name, case, repeat: int, out: dict) -> None:
     der_build, flex_build, steps, warm = case
     ours, theirs, builds = [], [], {"der": [], "flex": []}
@@ -183,6 +218,8 @@ def main(argv=None):
         print("\nbuild time [s] (median): " + "; ".join(
             f"{k}: {v['build_s_derods']:.2f} / {v['build_s_flex']:.2f}" for k, v in out.items()
             if k.startswith("R = ") and "build_s_derods" in v))
+    if not args.quick:
+        run_pruning(args.repeat, out)
     if args.json:
         with open(args.json, "w") as f:
             json.dump(out, f, indent=1)
