@@ -334,10 +334,12 @@ class Rod:
         return self._terms(cfg, order, psd, names)
 
     @property
-    def has_kernel(self) -> bool:
-        """True if :meth:`step_terms` runs in the compiled kernel (isotropic, naturally
-        straight rods, open or closed)."""
+    def has_closed_form_twist(self) -> bool:
+        """True for an isotropic, naturally straight rod: its quasistatic twist is solved in
+        closed form and enters as a reduced, rank-one term (others need Newton's method)."""
         return "bend_material" not in self.active_terms
+
+    has_kernel = True  #: every rod's step_terms runs in the compiled kernel
 
     def step_terms(self, state: RodState, x: np.ndarray, use_kernel: bool | None = None,
                    boundary: TwistBoundary | None = None) -> StepTerms:
@@ -345,19 +347,16 @@ class Rod:
 
         state: the previous state (its frames are transported to ``x``).
         x: new vertex positions [m], shape (..., n_vertices, 3).
-        use_kernel: force (True) or forbid (False) the compiled kernel; None picks it
-            whenever :attr:`has_kernel`. Both give the same numbers (to round-off).
+        use_kernel: the compiled kernel (True, the default) or the numpy path it is tested
+            against (False). Both give the same numbers (to round-off; for anisotropic or
+            naturally curved rods, to the Newton twist solve's tolerance).
         boundary: this step's twist boundary, when clamps move (default: ``self.boundary``);
             it must be of the same kind.
         """
         if boundary is not None and boundary.kind != self.boundary.kind:
             raise ValueError(f"boundary kind {boundary.kind!r} differs from the rod's {self.boundary.kind!r}")
         bd = self.boundary if boundary is None else boundary
-        if use_kernel is None:
-            use_kernel = self.has_kernel
-        if use_kernel and not self.has_kernel:
-            raise ValueError("the compiled kernel covers isotropic, naturally straight rods only")
-        if use_kernel:
+        if use_kernel is None or use_kernel:
             return self._step_terms_kernel(state, x, bd)
         if "bend_material" in self.active_terms:
             return self._step_terms_material(state, x, bd)
@@ -464,15 +463,21 @@ class Rod:
         evaluate(rods, fr, flat(x, nv, 3), place, out, ends, xmat, np.inf, bands, band_of_rod)
         shape = lambda a, *tail: a.reshape(batch + tail)  # noqa: E731
         theta = shape(fr.theta, ne)
-        if "twist" in self.active_terms:
+        if self.has_closed_form_twist and "twist" in self.active_terms:
             e_tw = np.divide(0.5 * out.lam**2, out.coef, out=np.zeros(n), where=out.coef > 0)
             red = twist.ReducedTwist(theta, shape(out.lam), shape(e_tw), shape(out.g_tw, nv, 3),
                                      shape(out.coef))
         else:
             red = self._no_twist(theta)
+        if self.has_closed_form_twist:
+            grad_theta = self._clamp_moments(red.lam, bd, batch + (ne,))
+        else:
+            # Zero on the free angles (solved); the held ends' moments from the kernel.
+            grad_theta = np.zeros(batch + (ne,))
+            grad_theta[..., 0] = shape(out.end_moment[:, 0])
+            grad_theta[..., -1] = shape(out.end_moment[:, 1])
         return StepTerms(RodState(x, shape(fr.u, ne, 3), shape(fr.t, ne, 3), theta), shape(out.energy),
-                         shape(out.grad, nv, 3), shape(bands, rows, 3 * nv), red,
-                         self._clamp_moments(red.lam, bd, batch + (ne,)))
+                         shape(out.grad, nv, 3), shape(bands, rows, 3 * nv), red, grad_theta)
 
     def energy(self, state: RodState) -> np.ndarray:
         """Total elastic energy [J], shape (...)."""

@@ -10,9 +10,11 @@ frozen; :class:`Frames`, the state), so one compiled call
 (:func:`derods._numba.step.rods_step`) serves them all, and Python's work per
 step does not grow with the number of rods.
 
-The compiled path covers isotropic, naturally straight rods (open or closed).
-Its oracle is the numpy path of :meth:`derods.rod.Rod.step_terms`
-(``use_kernel=False``), held to it to round-off by tests/test_step.py.
+The compiled path covers every rod: isotropic, naturally straight ones with the
+twist in closed form, anisotropic or naturally curved ones with Newton's method
+on their twist angles. Its oracle is the numpy path of
+:meth:`derods.rod.Rod.step_terms` (``use_kernel=False``), held to it by
+tests/test_step.py.
 """
 
 from __future__ import annotations
@@ -32,13 +34,19 @@ class RodSet:
 
     v_off, e_off, j_off: offsets, shape (n_rods + 1,), int64.
     rest_len: rest edge lengths [m], shape (n_edges,). vlen: vertex lengths l_k [m],
-    shape (n_joints,). mbar: natural twist per joint [rad], shape (n_joints,).
-    ks [N], alpha [N m^2], beta [N m^2]: stiffnesses, shape (n_rods,).
-    compiled (the compiled step covers the rod: isotropic and naturally straight; the
-    others are left to :meth:`derods.rod.Rod.step_terms`), closed, has_twist (the rod
-    carries the twist term), clamped (both ends' frames held, or a ring's total twist
-    imposed), anchor_last (only the last edge's frame held): shape (n_rods,), bool. theta_first, theta_last [rad]: held angles of the end edges
-    (0 where not held); total_twist [rad]: a ring's imposed twist; shape (n_rods,).
+    shape (n_joints,). mbar: natural twist per joint [rad], shape (n_joints,). wbar: rest
+    material curvatures omegabar per joint and side, shape (n_joints, 2, 2) (zero for a
+    naturally straight rod). edge_pos: each edge's place in the rod's twist system
+    (identity; a ring's zig-zag order, :func:`derods.stencil.ring_order`), shape (n_edges,).
+    ks [N], alpha (isotropic bending) [N m^2], beta [N m^2]: stiffnesses, shape (n_rods,);
+    bend: principal bending stiffnesses (B1, B2) [N m^2], shape (n_rods, 2).
+    kind: 1 for an isotropic, naturally straight rod (twist in closed form, a reduced
+    rank-one term), 2 for an anisotropic or naturally curved one (Newton on the twist
+    angles), shape (n_rods,). closed, has_twist (the rod carries the twist term), clamped
+    (both ends' frames held, or a ring's total twist imposed), anchor_last (only the last
+    edge's frame held), fix_first, fix_last (that end's frame held): shape (n_rods,),
+    bool. theta_first, theta_last [rad]: held angles of the end edges (0 where not held);
+    total_twist [rad]: a ring's imposed twist; shape (n_rods,).
     """
 
     v_off: np.ndarray
@@ -47,14 +55,19 @@ class RodSet:
     rest_len: np.ndarray
     vlen: np.ndarray
     mbar: np.ndarray
+    wbar: np.ndarray
+    edge_pos: np.ndarray
     ks: np.ndarray
     alpha: np.ndarray
+    bend: np.ndarray
     beta: np.ndarray
-    compiled: np.ndarray
+    kind: np.ndarray
     closed: np.ndarray
     has_twist: np.ndarray
     clamped: np.ndarray
     anchor_last: np.ndarray
+    fix_first: np.ndarray
+    fix_last: np.ndarray
     theta_first: np.ndarray
     theta_last: np.ndarray
     total_twist: np.ndarray
@@ -63,42 +76,52 @@ class RodSet:
     def of(cls, rods: Sequence, boundaries: Sequence[TwistBoundary | None] | None = None) -> "RodSet":
         """The set of ``rods`` (:class:`derods.Rod`, each one rod or a batch of equal
         rods, expanded in order); boundaries: per rod, a boundary replacing its own."""
+        from .stencil import ring_order
+
         if boundaries is None:
             boundaries = [None] * len(rods)
-        nv, ne, nj, cols = [], [], [], {k: [] for k in ("rest_len", "vlen", "mbar")}
-        per_rod = {k: [] for k in ("ks", "alpha", "beta", "compiled", "closed", "has_twist", "clamped",
-                                   "anchor_last", "theta_first", "theta_last", "total_twist")}
+        counts = {"v": [], "e": [], "j": []}
+        cols = {k: [] for k in ("rest_len", "vlen", "mbar", "wbar", "edge_pos")}
+        per_rod = {k: [] for k in ("ks", "alpha", "bend", "beta", "kind", "closed", "has_twist", "clamped",
+                                   "anchor_last", "fix_first", "fix_last", "theta_first", "theta_last",
+                                   "total_twist")}
         for rod, bd in zip(rods, boundaries):
             bd = rod.boundary if bd is None else bd
-            batch = int(np.prod(rod.rest_x.shape[:-2], dtype=int))
-            n_j = rod.vlen.shape[-1]
-            rest_len = np.broadcast_to(rod.rest_len, rod.rest_x.shape[:-2] + (rod.n_edges,)).reshape(batch, -1)
-            vlen = np.broadcast_to(rod.vlen, rod.rest_x.shape[:-2] + (n_j,)).reshape(batch, -1)
-            mbar = np.broadcast_to(rod.mbar, rod.rest_x.shape[:-2] + (n_j,)).reshape(batch, -1)
+            lead = rod.rest_x.shape[:-2]
+            batch = int(np.prod(lead, dtype=int))
+            ne, nj = rod.n_edges, rod.vlen.shape[-1]
+            rest_len = np.broadcast_to(rod.rest_len, lead + (ne,)).reshape(batch, ne)
+            vlen = np.broadcast_to(rod.vlen, lead + (nj,)).reshape(batch, nj)
+            mbar = np.broadcast_to(rod.mbar, lead + (nj,)).reshape(batch, nj)
+            wbar = (np.zeros((batch, nj, 2, 2)) if rod.rest_curvature is None
+                    else np.broadcast_to(rod.rest_curvature, lead + (nj, 2, 2)).reshape(batch, nj, 2, 2))
+            edge_pos = np.argsort(ring_order(ne)) if rod.closed else np.arange(ne)
+            fix_first = not rod.closed and (bd.kind == "clamped" or bd.theta_first is not None)
+            fix_last = not rod.closed and (bd.kind == "clamped" or bd.theta_last is not None)
             for b in range(batch):
-                nv.append(rod.n_vertices)
-                ne.append(rod.n_edges)
-                nj.append(n_j)
-                cols["rest_len"].append(rest_len[b])
-                cols["vlen"].append(vlen[b])
-                cols["mbar"].append(mbar[b])
-                per_rod["ks"].append(rod.ks)
-                per_rod["alpha"].append(rod.material.alpha)
-                per_rod["beta"].append(rod.material.beta)
-                per_rod["compiled"].append(rod.has_kernel)
-                per_rod["closed"].append(rod.closed)
-                per_rod["has_twist"].append("twist" in rod.active_terms)
-                per_rod["clamped"].append(bd.kind in ("clamped", "ring"))
-                per_rod["anchor_last"].append(not rod.closed and bd.kind == "free" and bd.theta_first is None
-                                              and bd.theta_last is not None)
-                per_rod["theta_first"].append(bd.theta_first or 0.0)
-                per_rod["theta_last"].append(bd.theta_last or 0.0)
-                per_rod["total_twist"].append(bd.total_twist)
-        off = lambda counts: np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)  # noqa: E731
-        flat = {k: np.ascontiguousarray(np.concatenate(v), dtype=float) for k, v in cols.items()}
-        bools = ("compiled", "closed", "has_twist", "clamped", "anchor_last")
-        rod_arrays = {k: np.array(v, dtype=bool if k in bools else float) for k, v in per_rod.items()}
-        return cls(off(nv), off(ne), off(nj), **flat, **rod_arrays)
+                counts["v"].append(rod.n_vertices)
+                counts["e"].append(ne)
+                counts["j"].append(nj)
+                for key, val in (("rest_len", rest_len[b]), ("vlen", vlen[b]), ("mbar", mbar[b]), ("wbar", wbar[b]),
+                                 ("edge_pos", edge_pos)):
+                    cols[key].append(val)
+                for key, val in (("ks", rod.ks), ("alpha", rod.material.alpha), ("bend", rod.material.bend_stiffness),
+                                 ("beta", rod.material.beta), ("kind", 1 if rod.has_closed_form_twist else 2),
+                                 ("closed", rod.closed), ("has_twist", "twist" in rod.active_terms),
+                                 ("clamped", bd.kind in ("clamped", "ring")),
+                                 ("anchor_last", not rod.closed and bd.kind == "free" and bd.theta_first is None
+                                  and bd.theta_last is not None),
+                                 ("fix_first", fix_first), ("fix_last", fix_last),
+                                 ("theta_first", bd.theta_first or 0.0), ("theta_last", bd.theta_last or 0.0),
+                                 ("total_twist", bd.total_twist)):
+                    per_rod[key].append(val)
+        off = lambda c: np.concatenate([[0], np.cumsum(c)]).astype(np.int64)  # noqa: E731
+        flat = {k: np.ascontiguousarray(np.concatenate(v), dtype=np.int64 if k == "edge_pos" else float)
+                for k, v in cols.items()}
+        types = {"kind": np.int64, "closed": bool, "has_twist": bool, "clamped": bool, "anchor_last": bool,
+                 "fix_first": bool, "fix_last": bool}
+        rod_arrays = {k: np.array(v, dtype=types.get(k, float)) for k, v in per_rod.items()}
+        return cls(off(counts["v"]), off(counts["e"]), off(counts["j"]), **flat, **rod_arrays)
 
     @property
     def n_rods(self) -> int:
@@ -162,8 +185,10 @@ class Terms:
     band: lower band of the PSD Hessian over the places in the solve order [N/m], shape
     (band_rows, 3 n_places). g_tw: d(total reference twist)/dx [1/m], shape
     (n_vertices, 3): the reduced twist term's Hessian is coef g g^T. lam: twisting moment
-    [N m], coef: 2 / sum(l_k / beta) [N m] (0 unless both ends' frames are held),
-    strain: largest |edge strain| per rod, shape (n_rods,).
+    [N m], coef: 2 / sum(l_k / beta) [N m] (0 unless both ends' frames are held, and for
+    rods whose twist is solved by Newton's method), shape (n_rods,). end_moment: dE/dtheta
+    of each rod's first and last edge [N m], the moments held ends resist, shape
+    (n_rods, 2). strain: largest |edge strain| per rod, shape (n_rods,).
     """
 
     energy: np.ndarray
@@ -172,12 +197,14 @@ class Terms:
     g_tw: np.ndarray
     lam: np.ndarray
     coef: np.ndarray
+    end_moment: np.ndarray
     strain: np.ndarray
 
     @classmethod
     def empty(cls, n_rods: int, n_vertices: int, n_dofs: int, band_rows: int) -> "Terms":
         return cls(np.zeros(n_rods), np.zeros((n_vertices, 3)), np.zeros((band_rows, n_dofs)),
-                   np.zeros((n_vertices, 3)), np.zeros(n_rods), np.zeros(n_rods), np.zeros(n_rods))
+                   np.zeros((n_vertices, 3)), np.zeros(n_rods), np.zeros(n_rods), np.zeros((n_rods, 2)),
+                   np.zeros(n_rods))
 
 
 def evaluate(rods: RodSet, frames: Frames, x: np.ndarray, place: np.ndarray, out: Terms,
@@ -188,8 +215,7 @@ def evaluate(rods: RodSet, frames: Frames, x: np.ndarray, place: np.ndarray, out
     x: vertex positions [m], shape (n_vertices, 3). place: each vertex's place in the
     solve order (its dofs are 3 place .. 3 place + 2), -1 for a held vertex, shape
     (n_vertices,), int64. ends: clamps on moving bodies; xmat: MuJoCo's body
-    orientations (``data.xmat``), shape (n_bodies, 9). Rods the compiled step does not
-    cover (``rods.compiled`` False) are left untouched. bands, band_of_rod: where rod i's
+    orientations (``data.xmat``), shape (n_bodies, 9). bands, band_of_rod: where rod i's
     Hessian goes, ``bands[band_of_rod[i]]`` (default: every rod into ``out.band``, the
     world's one band; :meth:`derods.Rod.step_terms` gives each rod a band of its own, with
     ``place`` local to each rod). Returns the index of the first rod whose edge strain is
@@ -200,10 +226,11 @@ def evaluate(rods: RodSet, frames: Frames, x: np.ndarray, place: np.ndarray, out
     if bands is None:
         bands, band_of_rod = out.band[None], np.zeros(rods.n_rods, dtype=np.int64)
     out.strain[:] = strain_limit
-    return rods_step(x, rods.v_off, rods.e_off, rods.j_off, rods.rest_len, rods.vlen, rods.mbar, rods.ks,
-                     rods.alpha, rods.beta, rods.compiled, rods.closed, rods.has_twist, rods.clamped, rods.anchor_last,
-                     rods.theta_first, rods.theta_last, rods.total_twist, ends.body, ends.director,
-                     frames.theta_end, xmat, place, band_of_rod, frames.u, frames.t, frames.theta, out.grad,
-                     bands, out.g_tw, out.energy, out.lam, out.coef, out.strain)
+    return rods_step(x, rods.v_off, rods.e_off, rods.j_off, rods.rest_len, rods.vlen, rods.mbar, rods.wbar,
+                     rods.edge_pos, rods.ks, rods.alpha, rods.bend, rods.beta, rods.kind, rods.closed, rods.has_twist,
+                     rods.clamped, rods.anchor_last, rods.fix_first, rods.fix_last, rods.theta_first, rods.theta_last,
+                     rods.total_twist, ends.body, ends.director, frames.theta_end, xmat, place, band_of_rod,
+                     frames.u, frames.t, frames.theta, out.grad, bands, out.g_tw, out.energy, out.lam, out.coef,
+                     out.end_moment, out.strain)
 
 

@@ -24,6 +24,13 @@ def cholesky_into(ab, lt):
     (b + 1, n), into lt (n, b + 1), lt[j, d] = L[j + d, j] with A = L L^T. Right-looking:
     each column, once divided by its pivot, updates the window below it. Raises
     ValueError if A is not positive definite (or not finite)."""
+    if not cholesky_ok(ab, lt):
+        raise ValueError("matrix is not positive definite")
+
+
+@nb.njit(cache=True)
+def cholesky_ok(ab, lt):
+    """:func:`cholesky_into` that returns False instead of raising (lt is then partial)."""
     bwp, n = ab.shape
     bw = bwp - 1
     for j in range(n):
@@ -32,7 +39,7 @@ def cholesky_into(ab, lt):
     for j in range(n):
         pivot = lt[j, 0]
         if not pivot > 0.0:
-            raise ValueError("matrix is not positive definite")
+            return False
         pivot = math.sqrt(pivot)
         lt[j, 0] = pivot
         inv = 1.0 / pivot
@@ -46,6 +53,7 @@ def cholesky_into(ab, lt):
                     lt[j + s, r - s] -= lt[j, r] * ls
         for r in range(m + 1, bwp):
             lt[j, r] = 0.0
+    return True
 
 
 @nb.njit(cache=True)

@@ -111,14 +111,14 @@ class Reactions:
         return len(self.bodies) > 0
 
     def apply(self, model: mujoco.MjModel, data: mujoco.MjData, x: np.ndarray, grad: np.ndarray,
-              t: np.ndarray, grad_theta_ends: np.ndarray) -> None:
+              t: np.ndarray, end_moment: np.ndarray) -> None:
         """Add this step's reaction to qfrc_applied (and remove the last step's).
 
         x: vertex positions [m], grad: dE/dx [N], both (n_vertices, 3); t: tangents
-        (n_edges, 3); grad_theta_ends (n_rods, 2): dE/dtheta [N m] of each rod's first
-        and last edge (what a clamp there resists).
+        (n_edges, 3); end_moment (n_rods, 2): dE/dtheta [N m] of each rod's first and last
+        edge (what a clamp there resists).
         """
-        self.end_moment[:] = grad_theta_ends[self.clamp_rod, self.clamp_end]
+        self.end_moment[:] = end_moment[self.clamp_rod, self.clamp_end]
         point = data.xpos[self.bodies]
         holder_wrench(x, grad, t, self.held_vertex, self.held_slot, self.clamp_slot, self.clamp_edge,
                       self.end_moment, point, self.force, self.torque)

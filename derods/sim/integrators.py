@@ -7,7 +7,7 @@ computed once, for all rods at once:
    moving bodies) and the strain check;
 2. frames transported, clamps turned with their bodies, twist solved, forces
    and the PSD band of every rod (:func:`derods.step.evaluate`, one compiled
-   call; rods it does not cover go through :meth:`derods.Rod.step_terms`);
+   call, whatever the rods' kinds and sizes);
 3. the rods' reaction on the bodies that hold them.
 
 Then the mode's own half: the explicit step applies the elastic force; the
@@ -28,13 +28,11 @@ import numpy as np
 from .._numba import coupling as _io
 from .._numba import implicit as _imp
 from .._numba.projection import projection_step
-from ..rod import RodState
-from ..stencil import ring_order
 from ..step import EndBodies, Frames, RodSet, Terms, evaluate
 from .clamps import Reactions
 from .contact import ContactStep
 from .divergence import MAX_SPEED, MAX_STRAIN, Diagnosis
-from .implicit import ImplicitSystem, restrict_band
+from .implicit import ImplicitSystem
 from .layout import Layout, RodEntry
 
 #: Tolerance [relative edge strain] and iteration cap of the projection mode.
@@ -69,7 +67,7 @@ class Step:
         n = layout.n
         self.x = np.zeros_like(layout.x0)
         self.terms = Terms.empty(rods.n_rods, rods.n_vertices, n, layout.band_rows)
-        tw = [i for i in range(rods.n_rods) if rods.compiled[i] and rods.has_twist[i] and rods.clamped[i]]
+        tw = [i for i in range(rods.n_rods) if rods.kind[i] == 1 and rods.has_twist[i] and rods.clamped[i]]
         self.rod_tw = np.array(tw, dtype=np.int64)
         self.system = ImplicitSystem(self.h, n, layout.mass, mass_damping, stiffness_damping, layout.band_rows,
                                      layout.dof_off[self.rod_tw], layout.dof_off[self.rod_tw + 1])
@@ -81,10 +79,6 @@ class Step:
         self._rhs = np.zeros(n)
         self._kv = np.zeros(n)
         self.reactions = Reactions(model, layout, entries, rods.e_off)
-        self.material = [i for i in range(rods.n_rods) if not rods.compiled[i]]
-        # dE/dtheta of each rod's end edges (what clamps resist), for the reactions.
-        self.grad_theta_ends = np.zeros((rods.n_rods, 2))
-        self._clamped_open = rods.clamped & ~rods.closed & rods.compiled
         self._moving = len(layout.moved_vertex) > 0
         self._badqacc = int(self.warnings[mujoco.mjtWarning.mjWARN_BADQACC])
         self.n_steps = 0
@@ -106,58 +100,8 @@ class Step:
                        self._bands, self._band_of_rod)
         if bad >= 0:
             self.diagnosis.strain(bad, float(self.terms.strain[bad]), self.n_steps, self.data.time)
-        if self.material:
-            self._material_rods(x)
         if self.reactions:
-            if self._clamped_open.any():
-                self.grad_theta_ends[self._clamped_open, 0] = -self.terms.lam[self._clamped_open]
-                self.grad_theta_ends[self._clamped_open, 1] = self.terms.lam[self._clamped_open]
-            self.reactions.apply(self.model, self.data, x, self.terms.grad, self.frames.t, self.grad_theta_ends)
-
-    def _material_rods(self, x: np.ndarray) -> None:
-        """Rods the compiled step does not cover (anisotropic or naturally curved): the
-        numpy path of :meth:`derods.Rod.step_terms` (Newton twist solve), one rod at a time."""
-        from .. import frames as fr
-        from ..twist import TwistBoundary
-
-        rods, lay, f = self.rods, self.layout, self.frames
-        for i in self.material:
-            e = self.entries[i]
-            vs, es = lay.vertices(i), slice(int(rods.e_off[i]), int(rods.e_off[i + 1]))
-            xi = x[vs]
-            strain = np.max(np.abs(np.linalg.norm(np.diff(np.concatenate([xi, xi[:1]]) if e.rod.closed else xi,
-                                                          axis=0), axis=1) / e.rod.rest_len - 1.0))
-            if not strain <= MAX_STRAIN:
-                self.diagnosis.strain(i, float(strain), self.n_steps, self.data.time)
-            state = RodState(xi, f.u[es], f.t[es], f.theta[es])
-            bd = None
-            if (self.ends.body[i] >= 0).any():
-                t = fr.tangents(xi, False)
-                u = fr.time_parallel_transport(state.u, state.t, t)
-                for k in range(2):
-                    b = self.ends.body[i, k]
-                    if b < 0:
-                        continue
-                    edge = 0 if k == 0 else e.rod.n_edges - 1
-                    angle = float(fr.signed_angle(u[edge], self.xmat[b].reshape(3, 3) @ self.ends.director[i, k],
-                                                  t[edge]))
-                    prev = f.theta_end[i, k]
-                    f.theta_end[i, k] = prev + (angle - prev + np.pi) % (2 * np.pi) - np.pi
-                b0 = e.rod.boundary
-                held = {k: f.theta_end[i, k] for k in range(2) if self.ends.body[i, k] >= 0}
-                bd = TwistBoundary(b0.kind, held.get(0, b0.theta_first), held.get(1, b0.theta_last),
-                                   b0.total_twist)
-            st = e.rod.step_terms(state, xi, use_kernel=False, boundary=bd)
-            f.u[es], f.t[es], f.theta[es] = st.state.u, st.state.t, st.state.theta
-            self.terms.grad[vs] = st.grad_x
-            self.terms.energy[i] = st.energy
-            self.grad_theta_ends[i] = st.grad_theta[0], st.grad_theta[-1]
-            band = st.hessian_banded
-            p0 = int(lay.dof_off[i])  # the rod's first dof in the solve order
-            if not e.rod.closed:
-                free = np.flatnonzero(~e.fixed)
-                band = restrict_band(band, 3 * free[0], 3 * free[-1] + 3)
-            self.terms.band[: band.shape[0], p0:p0 + band.shape[1]] = band
+            self.reactions.apply(self.model, self.data, x, self.terms.grad, self.frames.t, self.terms.end_moment)
 
     def check(self) -> None:
         """Divergence after the step: MuJoCo's bad-acceleration reset, NaN, runaway speed."""
@@ -275,14 +219,12 @@ def explicit_dt_limit(entries: list[RodEntry], layout: Layout, rods: RodSet, fra
     """The explicit step's stability limit [s] at the start: 2 / omega_max of the stiffest
     rod, omega_max^2 bounded by Gershgorin on M^-1 K (rows of |K| over the free dofs, the
     twist term's c |g| sum|g| added). ``frames`` are not changed."""
-    if not rods.compiled.all():
-        return _explicit_dt_limit_numpy(entries, layout)
     terms = Terms.empty(rods.n_rods, rods.n_vertices, layout.n, layout.band_rows)
     copy = Frames(frames.u.copy(), frames.t.copy(), frames.theta.copy(), frames.theta_end.copy())
     evaluate(rods, copy, layout.x0.copy(), layout.place, terms, ends, data.xmat)
     row = _abs_row_sums(terms.band)
     for i in range(rods.n_rods):
-        if rods.has_twist[i] and terms.coef[i] > 0:
+        if terms.coef[i] > 0:
             lo, hi = layout.dof_off[i], layout.dof_off[i + 1]
             g = np.abs(terms.g_tw[layout.free_vertex[lo // 3:hi // 3]].ravel())
             row[lo:hi] += terms.coef[i] * g * g.sum()
@@ -297,28 +239,3 @@ def _abs_row_sums(band: np.ndarray) -> np.ndarray:
     for d in range(1, ab.shape[0]):
         row[d:] += ab[d, :-d]
     return row
-
-
-def _explicit_dt_limit_numpy(entries: list[RodEntry], layout: Layout) -> float:
-    """:func:`explicit_dt_limit` for worlds with rods the compiled step does not cover, from
-    each rod's numpy band."""
-    from .. import frames as fr
-
-    limit = math.inf
-    for i, e in enumerate(entries):
-        rod = e.rod
-        t = fr.tangents(e.x0, rod.closed)
-        st = rod.advance(RodState(e.x0, fr.bishop_frames(e.x0, rod.closed, rod.u0), t, np.zeros(len(t))), e.x0)
-        terms = rod.step_terms(st, e.x0)
-        free = np.flatnonzero(~e.fixed)
-        band = terms.hessian_banded if rod.closed else restrict_band(terms.hessian_banded, 3 * free[0],
-                                                                     3 * free[-1] + 3)
-        row = _abs_row_sums(band)
-        if terms.twist.c.item() != 0:
-            order = ring_order(rod.n_vertices) if rod.closed else free
-            g = np.abs(terms.twist.g[order].ravel())
-            row += terms.twist.c * g * g.sum()
-        w2 = np.max(row / layout.mass[layout.dof_off[i]:layout.dof_off[i + 1]])
-        if w2 > 0:
-            limit = min(limit, 2.0 / math.sqrt(w2))
-    return limit
