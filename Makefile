@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 VENV317 := .venv317
 STAMP317 := $(VENV317)/.installed
 
-.PHONY: demo core-demo test test317 venv317 bench report clean
+.PHONY: demo core-demo test test317 venv317 bench report clean clean-cache
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -48,5 +48,9 @@ report: $(STAMP) $(STAMP317)
 		--results docs/report/results.jsonl --report-dir docs/report
 	$(VENV)/bin/python -m derods compare --full --workers 2 --results docs/report/results.jsonl --report-dir docs/report
 
-clean:
+# numba's on-disk cache is keyed per source file: clear it after editing a kernel that others call.
+clean-cache:
+	find derods -name __pycache__ -type d -prune -exec rm -rf {} +
+
+clean: clean-cache
 	rm -rf $(VENV) $(VENV317) build *.egg-info
