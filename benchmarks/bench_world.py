@@ -41,7 +41,7 @@ import mujoco
 import numpy as np
 
 import derods
-from derods import World, shapes
+from derods import World, scenes, shapes
 from derods.apps.drop import DropParams, build_world
 from derods.bench import CaseParams, native
 from derods.bench.backends import BACKENDS
@@ -118,7 +118,7 @@ def strands(count: int, lying: bool):
 
     def der():
         p = CaseParams(**STRAND)
-        world = World(native.MJCF_DIR / "floor.xml" if lying else None, dt=p.dt, mass_damping=2.0,
+        world = World(scenes.path("floor") if lying else None, dt=p.dt, mass_damping=2.0,
                       gravity=(0.0, 0.0, -p.gravity))
         for i in range(count):
             world.add_rod(derods.Rod(rest(i), p.material, natural_curvature=not lying), f"s{i}",

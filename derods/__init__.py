@@ -5,20 +5,17 @@ binormal, vertex lengths), :mod:`derods.frames` (Bishop, reference and
 material frames), :mod:`derods.energy` (stretch, bend and twist energies with
 exact gradients and Hessians), :mod:`derods.twist` (the quasistatic material
 frame), :mod:`derods.shapes` (rest shapes and Bezier curves) and
-:mod:`derods.rod` (parameters, state and the active energy terms).
+:mod:`derods.rod` (parameters, state and the active energy terms). Rods in
+MuJoCo: :class:`World` (:mod:`derods.sim`); scenes that ship with derods:
+:mod:`derods.scenes`. Importing derods sets nothing up (no GL backend, no
+environment variables); rendering chooses its backend when first used.
 """
 
-# MuJoCo picks its OpenGL backend when first imported: choose EGL (headless) first
-# when there is no display, unless the user chose a backend.
-from .viz.render import ensure_headless_gl as _ensure_headless_gl
-
-_ensure_headless_gl()
-
-from .energy import Configuration, Derivatives  # noqa: E402
-from .rod import Material, Rod, RodState  # noqa: E402
-from .stencil import Hessian  # noqa: E402
-from .twist import TwistBoundary  # noqa: E402
-from . import frames, geometry, shapes  # noqa: E402
+from .energy import Configuration, Derivatives
+from .rod import Material, Rod, RodState
+from .stencil import Hessian
+from .twist import TwistBoundary
+from . import frames, geometry, shapes
 
 __version__ = "0.1.0"
 

@@ -12,6 +12,7 @@ A :class:`Rod` may describe many rods of equal vertex count at once: give
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -25,6 +26,12 @@ from .twist import TwistBoundary
 #: Young's modulus [Pa] of the stretching term of an "inextensible" rod: the
 #: weight of a 1 m rod of density 1000 kg/m^3 then strains it by about 1e-6.
 INEXTENSIBLE_MODULUS = 1e10
+#: The stiffest modulus [Pa] a Material accepts: above any material (diamond: 1.2e12 Pa);
+#: an implicit step loses positive definiteness near 1e22 Pa.
+MAX_MODULUS = 1e13
+#: The sharpest turn [rad] a rod may take at a vertex: two edges folded back onto each
+#: other (pi) have an infinite discrete curvature.
+MAX_TURN = math.radians(179.0)
 
 
 @dataclass(frozen=True)
@@ -56,6 +63,11 @@ class Material:
             _checks.positive("shear", self.shear, "Pa")
         elif not (-1.0 < self.poisson <= 0.5):
             raise ValueError(f"poisson must be in (-1, 0.5], got {self.poisson!r}")
+        for name in ("young", "shear"):
+            value = getattr(self, name)
+            if value is not None and value > MAX_MODULUS:
+                raise ValueError(f"{name} = {value:g} Pa is stiffer than any material (diamond: 1.2e12 Pa); "
+                                 f"use a modulus <= {MAX_MODULUS:g} Pa")
 
     @property
     def b(self) -> float:
@@ -107,6 +119,20 @@ class Material:
     def line_density(self) -> float:
         """Mass per length rho A [kg/m]."""
         return self.density * self.area
+
+
+def check_turns(name: str, x: np.ndarray, closed: bool) -> None:
+    """Refuse positions whose edges fold back onto each other (a turn above MAX_TURN at a
+    vertex), naming the vertex and what to do."""
+    # atan2(|a x b|, a . b): exact also at a full fold, where kb (and turning_angles) is 0 / 0.
+    ta, tb = geometry.joint_pairs(frames.tangents(x, closed), closed)
+    turn = np.arctan2(geometry.norm(np.cross(ta, tb)), np.einsum("...i,...i->...", ta, tb))
+    if turn.size and np.max(turn) > MAX_TURN:
+        idx = np.unravel_index(int(np.argmax(turn)), turn.shape)
+        k = int(idx[-1]) if closed else int(idx[-1]) + 1
+        raise ValueError(f"{name} turns by {math.degrees(float(turn[idx])):.1f} degrees at vertex {k}: its edges fold back "
+                         f"onto each other, where a discrete rod's curvature is infinite; round the fold over several "
+                         f"edges (at most {math.degrees(MAX_TURN):.0f} degrees per vertex)")
 
 
 @dataclass
@@ -190,6 +216,7 @@ class Rod:
 
     def __post_init__(self):
         x = _checks.points("rest_x", self.rest_x, self.closed)
+        check_turns("rest_x", x, self.closed)
         if self.closed and self.boundary.kind != "ring":
             raise ValueError("a closed rod needs boundary=TwistBoundary('ring', total_twist=...)")
         if not self.closed and self.boundary.kind == "ring":

@@ -12,6 +12,7 @@ import argparse
 import pathlib
 
 import derods  # noqa: F401  (chooses a headless OpenGL backend before MuJoCo loads one)
+from derods import scenes
 from derods.apps import drop
 
 
@@ -22,7 +23,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    for scene in drop.scene_names():
+    for scene in scenes.names():
         if args.test:
             p = drop.DropParams(scene=scene, rods=2, n_edges=12, seconds=0.3, fps=10, width=160, height=90,
                                 dt=5e-3)

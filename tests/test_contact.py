@@ -7,7 +7,7 @@ import pytest
 import scipy.optimize
 
 import derods
-from derods import bench, shapes
+from derods import scenes, shapes
 from derods.sim import contact
 from derods.sim.implicit import ImplicitSystem
 from derods import World
@@ -83,7 +83,7 @@ def test_rod_resting_on_the_floor_is_held_by_its_weight(dt):
     """At rest the contact forces carry the rod's weight exactly and no net sideways force."""
     mat = derods.Material(young=1e7)
     rod = derods.Rod(shapes.straight(0.8, 16, start=(-0.4, 0, 0.05)), mat)
-    w = World(bench.MJCF_DIR / "floor.xml", dt=dt, mass_damping=2.0)
+    w = World(scenes.path("floor"), dt=dt, mass_damping=2.0)
     w.add_rod(rod)
     w.step(int(1.0 / dt))
     assert np.abs(w.velocities()).max() < 1e-6

@@ -15,7 +15,7 @@ def colour_pixels(img, rgb, tol=60):
 
 
 def read(path):
-    return render._ffmpeg_for_mediapy().read_image(path)
+    return render.mediapy().read_image(path)
 
 
 @pytest.mark.parametrize("continuity", ["C0", "C1"])

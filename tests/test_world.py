@@ -14,7 +14,7 @@ import pytest
 import rods
 
 import derods
-from derods import ContactParams, DivergenceError, World, bench, reference, shapes
+from derods import ContactParams, DivergenceError, World, reference, scenes, shapes
 from derods.twist import TwistBoundary
 
 
@@ -90,7 +90,7 @@ def test_drop_comes_to_rest_without_sinking(dt, scene, centre, tilt):
     mat = derods.Material(young=1e7)
     x = shapes.straight(1.0, 30, direction=(math.cos(tilt), 0.0, math.sin(tilt)))
     x += np.asarray(centre) - x.mean(axis=0)
-    world = World(bench.MJCF_DIR / f"{scene}.xml", dt=dt, mass_damping=2.0)
+    world = World(scenes.path(scene), dt=dt, mass_damping=2.0)
     world.add_rod(derods.Rod(x, mat, natural_curvature=False))
     first_contact, deepest_late, rest_at = None, 0.0, None
     while world.time < 3.0 - 0.5 * dt:
@@ -169,7 +169,7 @@ def test_world_computes_only_what_the_scene_needs():
     w.add_rod(rod)
     assert w.model.flex_contype[0] == 0 and w.model.flex_conaffinity[0] == 0
     assert w.active_terms == {"rod0": ("stretch", "bend_isotropic")}
-    w_floor = World(bench.MJCF_DIR / "floor.xml")
+    w_floor = World(scenes.path("floor"))
     w_floor.add_rod(rod)
     assert w_floor.model.flex_contype[0] == 1
     assert w_floor.model.flex_selfcollide[0] == mujoco.mjtFlexSelf.mjFLEXSELF_NONE
@@ -180,7 +180,7 @@ def test_world_computes_only_what_the_scene_needs():
 
 def test_several_rods_fall_independently():
     mat = derods.Material(young=1e7)
-    w = World(bench.MJCF_DIR / "floor.xml", dt=5e-3)
+    w = World(scenes.path("floor"), dt=5e-3)
     w.add_rod(derods.Rod(shapes.straight(0.5, 10, start=(0, 0, 0.2)), mat), "low")
     w.add_rod(derods.Rod(shapes.straight(0.5, 12, start=(0, 0.5, 1.5)), mat), "high")
     w.step(80)  # 0.4 s: the low rod (0.2 s to fall) has landed; the high one falls freely

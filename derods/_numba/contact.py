@@ -120,7 +120,9 @@ def newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a0, col0, jw,
     n_tw = len(tw_lo)
     a = a0.copy()
     am = np.zeros(n)  # A (a - a0), updated along the steps instead of recomputed
-    jar = apply_all(col0, jw, fptr, fcol, fval, a) - aref
+    jar = apply_all(col0, jw, fptr, fcol, fval, a)
+    for i in range(k):
+        jar[i] -= aref[i]
     m1 = 0.0
     for j in range(n):
         m1 = max(m1, abs(mass[j] * a0[j]))
@@ -129,6 +131,7 @@ def newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a0, col0, jw,
         m2 = max(m2, abs(d[i] * aref[i]))
     scale = m1 + m2 + 1e-300
     w = np.empty(k)
+    wjar = np.empty(k)
     w_factored = np.full(kb, -1.0)  # the banded weights B was last factored with
     ab = np.empty_like(a_band)
     lt = np.empty((n, a_band.shape[0]))
@@ -137,14 +140,18 @@ def newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a0, col0, jw,
     zf_ready = False
     far_cols, far_first = _far_columns(fptr, fcol, fval, n)
     kd = np.empty(n)
+    ad = np.empty(n)
+    delta = np.empty(n)
     y = np.empty((n, 1))
     it = 0
     for it in range(1, max_iter + 1):
         for i in range(k):
             w[i] = d[i] if jar[i] < 0 else 0.0
-        grad = am + transpose_apply_all(col0, jw, fptr, fcol, fval, w * jar, n)
+            wjar[i] = w[i] * jar[i]
+        grad = transpose_apply_all(col0, jw, fptr, fcol, fval, wjar, n)
         gmax = 0.0
         for j in range(n):
+            grad[j] += am[j]
             gmax = max(gmax, abs(grad[j]))
         if gmax <= tol * scale:
             break
@@ -177,7 +184,8 @@ def newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a0, col0, jw,
         for r in range(kf):
             if w[kb + r] > 0:
                 n_act += 1
-        delta = -y[:, 0]
+        for j in range(n):
+            delta[j] = -y[j, 0]
         if n_act:
             if not zf_ready:
                 zf[:] = far_cols
@@ -191,37 +199,74 @@ def newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a0, col0, jw,
                     act[q] = r
                     q += 1
             small = np.zeros((n_act, n_act))
-            rhs = np.zeros(n_act)
+            corr = np.zeros(n_act)
             for p in range(n_act):
                 r = act[p]
                 small[p, p] = 1.0 / w[kb + r]
                 for qq in range(fptr[r], fptr[r + 1]):
                     col, val = fcol[qq], fval[qq]
-                    rhs[p] += val * y[col, 0]
+                    corr[p] += val * y[col, 0]
                     for c in range(n_act):
                         small[p, c] += val * zf[col, act[c]]
-            corr = np.linalg.solve(small, rhs)
+            _spd_solve(small, corr)
             for c in range(n_act):
                 zc = act[c]
                 for j in range(n):
                     delta[j] += zf[j, zc] * corr[c]
         jd = apply_all(col0, jw, fptr, fcol, fval, delta)
         k_matvec_into(k_band, g, tw_lo, tw_hi, tw_c, delta, kd)
-        ad = s * kd + mass * m_coef * delta
-        t = exact_line_search(jar, jd, d, float(delta @ ad), float(delta @ am))
-        a = a + t * delta
-        am = am + t * ad
-        jar = jar + t * jd
+        d_a, d_g = 0.0, 0.0
+        for j in range(n):
+            ad[j] = s * kd[j] + mass[j] * m_coef * delta[j]
+            d_a += delta[j] * ad[j]
+            d_g += delta[j] * am[j]
+        t = exact_line_search(jar, jd, d, d_a, d_g)
         smax = 0.0
         amax = 0.0
         for j in range(n):
+            a[j] += t * delta[j]
+            am[j] += t * ad[j]
             smax = max(smax, abs(t * delta[j]))
             amax = max(amax, abs(a[j]))
+        for i in range(k):
+            jar[i] += t * jd[i]
         if smax <= tol * (amax + 1e-300):
             break
-    jar = apply_all(col0, jw, fptr, fcol, fval, a) - aref
-    lam = np.where(jar < 0, -d * jar, 0.0)
+    jar = apply_all(col0, jw, fptr, fcol, fval, a)
+    lam = np.zeros(k)
+    for i in range(k):
+        r = jar[i] - aref[i]
+        if r < 0:
+            lam[i] = -d[i] * r
     return a, lam, it
+
+
+@nb.njit(cache=True)
+def _spd_solve(a, b):
+    """Solve a x = b in place on b for a small symmetric positive definite a (overwritten
+    by its Cholesky factor): the Woodbury system of the active far rows."""
+    m = a.shape[0]
+    for j in range(m):
+        acc = a[j, j]
+        for q in range(j):
+            acc -= a[j, q] * a[j, q]
+        ljj = np.sqrt(acc)
+        a[j, j] = ljj
+        for i in range(j + 1, m):
+            acc = a[i, j]
+            for q in range(j):
+                acc -= a[i, q] * a[j, q]
+            a[i, j] = acc / ljj
+    for i in range(m):
+        acc = b[i]
+        for q in range(i):
+            acc -= a[i, q] * b[q]
+        b[i] = acc / a[i, i]
+    for i in range(m - 1, -1, -1):
+        acc = b[i]
+        for q in range(i + 1, m):
+            acc -= a[q, i] * b[q]
+        b[i] = acc / a[i, i]
 
 
 @nb.njit(cache=True)

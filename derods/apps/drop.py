@@ -10,19 +10,18 @@ other, each turned about the vertical so they cross.
 from __future__ import annotations
 
 import math
-import pathlib
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
-from .. import shapes
+from .. import scenes, shapes
 from ..viz import render
 from ..rod import Material, Rod
 from ..twist import TwistBoundary
+from ..sim.divergence import DivergenceError
 from ..sim.world import ContactParams, World
 
-MJCF_DIR = pathlib.Path(__file__).resolve().parents[2] / "mjcf"
 SHAPES = ("straight", "helix", "bezier", "ring")
 OVERLAYS = ("none", "frames", "bend", "twist")
 #: Default control points of the "bezier" shape (scaled to the rod length).
@@ -31,24 +30,6 @@ BEZIER_CONTROL = np.array([[0, 0, 0], [0.3, 0.5, 0], [0.6, -0.5, 0], [1.0, 0, 0]
 #: Rod colours (RGBA), cycled: warm and saturated, to stand out from the grey-blue scenes.
 COLOURS = [(0.9, 0.3, 0.15, 1), (0.95, 0.7, 0.1, 1), (0.2, 0.65, 0.3, 1), (0.75, 0.2, 0.55, 1),
            (0.15, 0.55, 0.85, 1), (0.55, 0.35, 0.2, 1)]
-
-
-def scene_names() -> list[str]:
-    """Names of the scenes that ship in mjcf/."""
-    return sorted(p.stem for p in MJCF_DIR.glob("*.xml"))
-
-
-def scene_path(scene: str) -> pathlib.Path:
-    """Path of a scene given by name (mjcf/NAME.xml) or by path; ValueError names the choices."""
-    p = MJCF_DIR / f"{scene}.xml"
-    if p.is_file():
-        return p
-    q = pathlib.Path(scene)
-    if q.suffix == ".xml" or q.exists():
-        if not q.is_file():
-            raise ValueError(f"scene file {scene!r} does not exist")
-        return q
-    raise ValueError(f"unknown scene {scene!r}; choose one of {', '.join(scene_names())} or give an MJCF path")
 
 
 @dataclass(frozen=True)
@@ -123,13 +104,19 @@ def rod_shape(shape: str, length: float, n_edges: int, control=None) -> np.ndarr
     return x - x.mean(axis=0)
 
 
-def build_world(p: DropParams) -> World:
-    """The scene with ``p.rods`` rods placed above its drop site."""
-    path = scene_path(p.scene)
+def build_world(p: DropParams, notes=None) -> World:
+    """The scene with ``p.rods`` rods placed above its drop site, ready to film.
+
+    What a video needs and the scene lacks is added, and ``notes(text)`` (if given) is told:
+    an offscreen buffer of the video's size, a light, a camera "main" that frames the rods.
+    A rod that starts inside an obstacle is reported through ``notes`` too.
+    """
+    path = scenes.path(p.scene)
     try:
         spec = mujoco.MjSpec.from_file(str(path))
     except Exception as err:
         raise ValueError(f"cannot read MJCF scene {str(path)!r}: {err}") from None
+    note = notes or (lambda text: None)
     site = next((s for s in spec.sites if s.name == "drop"), None)
     centre = np.array(site.pos, dtype=float) if site is not None else np.array([0.0, 0.0, 1.0])
     spread = float(site.size[0]) if site is not None else 0.3
@@ -137,15 +124,125 @@ def build_world(p: DropParams) -> World:
     rng = np.random.default_rng(p.seed)
     base = rod_shape(p.shape, p.length, p.n_edges, p.control)
     ring = p.shape == "ring"
+    placed = []
     for i in range(p.rods):
         yaw = math.pi * i / p.rods + rng.uniform(-0.2, 0.2)
         rot = np.array([[math.cos(yaw), -math.sin(yaw), 0], [math.sin(yaw), math.cos(yaw), 0], [0, 0, 1]])
         offset = np.array([*rng.uniform(-0.3, 0.3, size=2) * spread, 0.12 * i])
         x = base @ rot.T + centre + offset
+        placed.append(x)
         rod = Rod(x, p.material, closed=True, boundary=TwistBoundary("ring")) if ring else Rod(x, p.material)
         world.add_rod(rod, f"rod{i}", rgba=COLOURS[i % len(COLOURS)])
+    for text in prepare_for_video(spec, p.width, p.height, np.concatenate(placed), p.camera is None):
+        note(text)
     world.compile()
+    for text in starts_inside(world):
+        note(text)
     return world
+
+
+def prepare_for_video(spec: mujoco.MjSpec, width: int, height: int, rods: np.ndarray, need_camera: bool) -> list:
+    """Add to ``spec`` what a video of it needs and it lacks; returns what was added, in words.
+
+    An offscreen buffer of at least width x height [pixels]; a directional light from above
+    if the scene has no light; a camera "main" looking at the rods' start (rods: their
+    vertices [m], shape (n, 3)) from the front and above, if need_camera and it has none.
+    """
+    added = []
+    g = spec.visual.global_
+    if g.offwidth < width or g.offheight < height:
+        added.append(f"the scene's offscreen buffer is {g.offwidth}x{g.offheight}; made it "
+                     f"{max(g.offwidth, width)}x{max(g.offheight, height)} for the video")
+        g.offwidth, g.offheight = max(g.offwidth, width), max(g.offheight, height)
+    if not spec.lights:
+        spec.worldbody.add_light(name="derods_light", pos=[0.0, 0.0, 5.0], dir=[0.3, 0.3, -1.0],
+                                 type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL, diffuse=[0.6, 0.6, 0.6],
+                                 castshadow=True)
+        spec.visual.headlight.ambient = [0.35, 0.35, 0.38]
+        spec.visual.headlight.diffuse = [0.45, 0.45, 0.45]
+        added.append("the scene has no light; added a directional light from above and a brighter headlight")
+    if need_camera and not any(c.name == "main" for c in spec.cameras):
+        lo, hi = rods.min(axis=0), rods.max(axis=0)
+        target = 0.5 * (lo + hi) - np.array([0.0, 0.0, 0.25 * (hi[2] - lo[2]) + 0.2])
+        dist = 1.2 * float(np.linalg.norm(hi - lo)) + 0.6
+        elev = math.radians(30.0)
+        pos = target + dist * np.array([0.0, -math.cos(elev), math.sin(elev)])
+        fwd = (target - pos) / np.linalg.norm(target - pos)
+        right = np.cross(fwd, [0.0, 0.0, 1.0])
+        right /= np.linalg.norm(right)
+        up = np.cross(right, fwd)
+        spec.worldbody.add_camera(name="main", pos=pos, xyaxes=np.concatenate([right, up]))
+        added.append(f"the scene has no camera 'main'; added one looking at the rods from {np.round(pos, 2).tolist()} m")
+    return added
+
+
+def deepest_contact(world: World) -> tuple[float, str | None, float]:
+    """(depth [m], rod name, rod radius [m]) of the deepest contact between a rod and
+    anything; (0, None, 0) without contacts. From the contacts of MuJoCo's last forward pass."""
+    m, d = world.model, world.data
+    deepest, who, radius = 0.0, None, 0.0
+    flexes = {mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_FLEX, n): i for i, n in enumerate(world.rod_names)}
+    for c in d.contact[: d.ncon]:
+        for f in (c.flex[0], c.flex[1]):
+            if f in flexes and -c.dist > deepest:
+                i = flexes[f]
+                deepest, who, radius = -c.dist, world.rod_names[i], world.rods[i].material.radius
+    return deepest, who, radius
+
+
+def contacts_held(world: World, end: bool) -> None:
+    """Raise DivergenceError if rods went through the scene: during a run, a contact deeper
+    than half a rod's length (it is through the obstacle); at its end, deeper than 4 radii
+    (resting rods sink 0.02-2 mm at r = 10 mm; a run that ends during an impact sees up to
+    1.7 r at 3 m/s; a dt at which contacts do not hold sinks rods by metres)."""
+    depth, who, radius = deepest_contact(world)
+    if who is None:
+        return
+    i = world.rod_names.index(who)
+    limit = 4.0 * radius if end else 0.5 * float(world.rods[i].length)
+    if depth > limit:
+        dt = world.model.opt.timestep
+        raise DivergenceError(f"rod {who!r} went into the scene: a contact {1000 * depth:.1f} mm deep at "
+                              f"t = {world.time:.4g} s (radius {1000 * radius:g} mm); contacts did not hold at "
+                              f"dt = {dt:g} s: use a smaller dt")
+
+
+def check_step(world: World) -> None:
+    """Refuse a dt at which a rod falling from where it starts would move more than half
+    its length in one step at impact: no contact can hold that (it would pass through
+    obstacles within a step). Smaller steps that still lose contact are caught while the
+    video is made (:func:`contacts_held`)."""
+    m = world.model
+    floor = float(np.min(world.data.geom_xpos[:, 2])) if m.ngeom else 0.0
+    top = max(float(world.positions(i)[:, 2].max()) for i in range(len(world.rods)))
+    v = math.sqrt(2.0 * 9.81 * max(top - floor, 0.0))
+    dt = m.opt.timestep
+    half = 0.5 * min(float(r.length) for r in world.rods)
+    if v * dt > half:
+        raise ValueError(f"dt {dt:g} s lets a rod falling from {top - floor:.2g} m move {v * dt:.3g} m in one step "
+                         f"at impact ({v:.2g} m/s), more than half its length ({half:.3g} m): no contact can hold; "
+                         f"use dt <= {half / v:.3g} s (dt <= {0.1 * half / v:.2g} s films it well)")
+
+
+def starts_inside(world: World) -> list:
+    """Rods that start inside an obstacle (a contact deeper than their radius), in words."""
+    m, d = world.model, world.data
+    mujoco.mj_forward(m, d)
+    out = []
+    for i, name in enumerate(world.rod_names):
+        r = world.rods[i].material.radius
+        flex = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_FLEX, name)
+        deepest, geom = 0.0, None
+        for c in d.contact[: d.ncon]:
+            if flex in (c.flex[0], c.flex[1]) and -c.dist > max(deepest, r):
+                deepest = -c.dist
+                other = c.geom[0] if c.geom[0] >= 0 else c.geom[1]
+                geom = m.geom(other).name or f"geom {other}" if other >= 0 else "another rod"
+        if geom is not None:
+            out.append(f"rod {name!r} starts inside {geom} ({1000 * deepest:.1f} mm deep, more than its radius "
+                       f"{1000 * r:g} mm); it will be pushed out violently or stay stuck: move the scene's 'drop' "
+                       "site or raise it")
+    return out
 
 
 def overlay_painter(world: World, kind: str):
@@ -177,27 +274,37 @@ def overlay_painter(world: World, kind: str):
     return paint
 
 
-def drop(p: DropParams, out, progress: bool = True, still=None) -> dict:
+def check_outputs(out, still=None) -> tuple:
+    """The video and still paths, checked before any work: an .mp4 and a .png in writable
+    folders, and not the same file. Raises ValueError with the fix."""
+    out = render.check_output_path(out, render.VIDEO_SUFFIXES, "--out")
+    if still is not None:
+        still = render.check_output_path(still, render.IMAGE_SUFFIXES, "--still")
+        if still.resolve() == out.resolve():
+            raise ValueError(f"--still {str(still)!r} is the video's path; give the still another name")
+    return out, still
+
+
+def drop(p: DropParams, out, progress: bool = True, still=None, quality: str = "auto", notes=None) -> dict:
     """Simulate ``p`` and write an MP4 to ``out``; returns a summary dict.
 
-    still: optional PNG path for the last frame (overlays included).
-    The files appear only once complete (see :mod:`derods.render`).
+    still: optional PNG path for the last frame (overlays included). quality: render
+    quality (:mod:`derods.viz.render`). notes: optional ``f(text)`` told what derods added
+    to a scene for its video, and what looks wrong (a rod starting inside an obstacle).
+    The files appear only once complete.
     """
-    if still is not None:
-        render.check_output_path(still)
-    out = render.check_output_path(out)
-    world = build_world(p)
+    out, still = check_outputs(out, still)
+    render.frame_plan(p.seconds, p.fps, p.dt)  # refuse a mismatched time, fps or dt before any work
+    world = build_world(p, notes)
+    check_step(world)
     cam_name = p.camera
     if cam_name is None and mujoco.mj_name2id(world.model, mujoco.mjtObj.mjOBJ_CAMERA, "main") >= 0:
         cam_name = "main"
     paint = overlay_painter(world, p.overlay)
-    frames = render.film(world, out, p.seconds, p.fps, p.width, p.height, cam_name,
-                         paint=paint, progress=progress, label=f"drop {p.scene}")
+    result = render.film(world, out, p.seconds, p.fps, p.width, p.height, cam_name, paint=paint, progress=progress,
+                         label=f"drop {p.scene}", quality=quality, after_frame=lambda w: contacts_held(w, False),
+                         before_close=lambda w: contacts_held(w, True))
     if still is not None:
-        cam = render.Camera(world.model, p.width, p.height, cam_name)
-        try:
-            render.write_image(still, cam.render(world.data, paint))
-        finally:
-            cam.close()
-    return {"out": str(out), "frames": frames, "sim_s": world.time, "steps": world.n_steps,
-            "rods": world.rod_names, "mode": world.mode}
+        render.write_image(still, result["last"])
+    return {"out": str(out), "frames": result["frames"], "sim_s": world.time, "steps": world.n_steps,
+            "rods": world.rod_names, "mode": world.mode, "quality": result["quality"]}

@@ -16,7 +16,7 @@ from typing import Callable, Protocol
 import mujoco
 import numpy as np
 
-from .. import shapes
+from .. import scenes, shapes
 from ..rod import Rod
 from ..sim.world import ContactParams, World
 from ..twist import TwistBoundary
@@ -95,7 +95,7 @@ def _der_cantilever(p, gravity: float, damping: float):
 
 
 def _der_free(p, x: np.ndarray, scene: str | None, damping: float = 0.0) -> World:
-    world = World(native.MJCF_DIR / f"{scene}.xml" if scene else None, dt=p.dt, gravity=(0.0, 0.0, -p.gravity),
+    world = World(scenes.path(scene) if scene else None, dt=p.dt, gravity=(0.0, 0.0, -p.gravity),
                   mode=p.mode, mass_damping=damping)
     world.add_rod(Rod(x, p.material, natural_curvature=False), "rod")
     world.compile()

@@ -55,7 +55,6 @@ from . import native
 from .backends import BACKENDS as _BACKENDS
 from .backends import RodSimulator
 
-MJCF_DIR = native.MJCF_DIR
 CASES = ("cantilever", "frequency", "drop", "michell", "circle", "twist", "stability", "extreme")
 BACKENDS = tuple(_BACKENDS)
 #: Cases each backend can run.

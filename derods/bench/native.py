@@ -47,17 +47,14 @@ Each rod class implements the harness's protocol
 from __future__ import annotations
 
 import math
-import pathlib
 import xml.etree.ElementTree as ET
 
 import mujoco
 import numpy as np
 
-from .. import frames, shapes
+from .. import frames, scenes, shapes
 from ..sim.divergence import Diagnosis, check_mujoco
 
-#: derods' scenes, which the native rods are dropped into too.
-MJCF_DIR = pathlib.Path(__file__).resolve().parents[2] / "mjcf"
 
 
 def has_flex_elasticity() -> bool:
@@ -104,7 +101,7 @@ def _compose(spec: mujoco.MjSpec, integrator, dt: float, gravity, scene: str | N
     spec.option.timestep = dt
     spec.option.gravity = np.asarray(gravity, dtype=float)
     if scene is not None:
-        child = mujoco.MjSpec.from_file(str(MJCF_DIR / f"{scene}.xml"))
+        child = mujoco.MjSpec.from_file(str(scenes.path(scene)))
         # Only the scene's geoms matter; its own options would conflict with the rod's.
         child.option.integrator, child.option.timestep = integrator, dt
         spec.attach(child, frame=spec.worldbody.add_frame(), prefix="scene_")

@@ -27,6 +27,8 @@ from ..stencil import RING_BANDWIDTH, XX_BANDWIDTH, ring_order
 #: How an end is held, and how many of its vertices that holds.
 END_KINDS = ("free", "pin", "clamp")
 HELD = {"free": 0, "pin": 1, "clamp": 2}
+#: Rotational inertia [kg m^2] given to vertex bodies at the least (MuJoCo's mjMINVAL is 1e-15).
+INERTIA_FLOOR = 1e-12
 
 
 @dataclass(frozen=True)
@@ -98,7 +100,9 @@ def _add_rod(spec, e: RodEntry, contact, collide: bool, poses: dict) -> None:
         else:
             body = spec.worldbody.add_body(name=f"{e.name}_{i}", pos=xi)
         body.mass = float(mass[i])
-        body.inertia = [0.5 * float(mass[i]) * r * r] * 3
+        # Vertex bodies only slide: their rotational inertia never acts, but MuJoCo refuses
+        # one below mjMINVAL (a rod thinner than ~0.5 mm would have it).
+        body.inertia = [max(0.5 * float(mass[i]) * r * r, INERTIA_FLOOR)] * 3
         body.explicitinertial = True
         if not fixed[i]:
             for k, axis in enumerate(np.eye(3)):

@@ -29,7 +29,8 @@ import numpy as np
 
 from .. import frames
 from .._numba.coupling import gather_positions
-from ..rod import Rod, RodState
+from .. import _checks
+from ..rod import Rod, RodState, check_turns
 from ..step import Frames, RodSet
 from .clamps import end_bodies, twist_boundary
 from .divergence import Diagnosis
@@ -39,6 +40,8 @@ from .layout import END_KINDS, Layout, RodEntry, add_to_spec
 
 #: Time stepping modes of a World ("auto" picks "implicit" or "explicit").
 MODES = ("auto", "implicit", "explicit", "projection")
+#: The lightest vertex [kg] a World accepts (MuJoCo refuses bodies below its mjMINVAL, 1e-15).
+MIN_VERTEX_MASS = 1e-12
 
 
 @dataclass(frozen=True)
@@ -87,13 +90,14 @@ class World:
                  contact: ContactParams = ContactParams(), integrator: str | None = None):
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
-        if dt is not None and not (np.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be finite and > 0 [s], got {dt!r}")
-        if mass_damping < 0 or stiffness_damping < 0:
-            raise ValueError(
-                f"damping must be >= 0: mass_damping={mass_damping!r} [1/s], "
-                f"stiffness_damping={stiffness_damping!r} [s]"
-            )
+        if dt is not None:
+            _checks.positive("dt", dt, "s")
+        _checks.non_negative("mass_damping", mass_damping, "1/s")
+        _checks.non_negative("stiffness_damping", stiffness_damping, "s")
+        if gravity is not None:
+            gravity = np.asarray(gravity, dtype=float)
+            if gravity.shape != (3,) or not np.all(np.isfinite(gravity)):
+                raise ValueError(f"gravity must be 3 finite numbers [m/s^2], got {gravity.tolist()!r}")
         if isinstance(scene, mujoco.MjSpec):
             self.spec = scene
         elif scene is None:
@@ -152,6 +156,15 @@ class World:
         x0 = rod.rest_x if x is None else np.asarray(x, dtype=float)
         if x0.shape != rod.rest_x.shape:
             raise ValueError(f"x must have shape {rod.rest_x.shape}, got {x0.shape}")
+        if x is not None:
+            _checks.points("x", x0, rod.closed)
+            check_turns("x", x0, rod.closed)
+        lightest = float(np.min(rod.vertex_mass))
+        if lightest < MIN_VERTEX_MASS:
+            raise ValueError(f"rod {name!r}: its lightest vertex weighs {lightest:.3g} kg, below what MuJoCo integrates "
+                             f"({MIN_VERTEX_MASS:g} kg; radius {rod.material.radius:g} m, density "
+                             f"{rod.material.density:g} kg/m^3, edges {float(np.min(rod.rest_len)):.3g} m): "
+                             "use a larger radius, density or edge length")
         for key, body, kind in (("start", start_body, start), ("end", end_body, end)):
             if body is None:
                 continue

@@ -1,0 +1,83 @@
+"""Compile every kernel of the step before a simulation starts.
+
+numba compiles a kernel on its first call and caches the machine code on disk
+(``__pycache__`` next to the source); a first run compiles everything (tens of
+seconds of CPU), later runs load the cache in about a second. :func:`warm_up`
+makes each kernel's first call happen up front, on small worlds that exercise
+every path of the step (isotropic, anisotropic and curved rods, a twisted ring,
+clamps on a moving body, contact with an obstacle and with the rod itself,
+explicit and projection modes), so no simulation stalls in the middle when a
+path is first taken (the first contact, say). :func:`prepare` says so when it
+takes long.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+
+#: Seconds of silence after which :func:`prepare` says that kernels are being compiled.
+NOTICE_AFTER = 1.0
+
+
+def warm_up() -> None:
+    """Run one short world of every kind, so every kernel is compiled (or loaded)."""
+    import mujoco
+    import numpy as np
+
+    from .. import shapes
+    from ..rod import Material, Rod
+    from ..twist import TwistBoundary
+    from .world import ContactParams, World
+
+    mat = Material(young=1e7, radius=0.01)
+    # Contact with an obstacle, a self-touching ring, a clamp on a moving body, a curved
+    # and an anisotropic rod, and a twisted isotropic one: one world, a few steps.
+    spec = mujoco.MjSpec()
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[2, 2, 0.1])
+    hand = spec.worldbody.add_body(name="warmup_hand", pos=[0.0, 1.0, 0.5], mocap=True)
+    hand.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.01, 0, 0], contype=0, conaffinity=0)
+    world = World(spec, dt=1e-2, mass_damping=1.0, contact=ContactParams(self_collision=True))
+    world.add_rod(Rod(shapes.straight(0.5, 8, start=(-0.25, 0.0, 0.011)), mat), "lying")
+    world.add_rod(Rod(shapes.circle(0.05, 12, center=(0.0, -0.5, 0.011)), mat, closed=True,
+                      natural_curvature=False, boundary=TwistBoundary("ring", total_twist=2.0)), "ring")
+    world.add_rod(Rod(shapes.cantilever(0.3, 6, start=(0.0, 1.0, 0.5)), mat,
+                      boundary=TwistBoundary("clamped", 0.0, 1.0)), "held", start="clamp", end="clamp",
+                  start_body="warmup_hand")
+    world.add_rod(Rod(shapes.helix(0.03, 0.02, 1.0, 8, start=(0.5, 0.5, 0.3)), mat), "curl", start="clamp")
+    world.add_rod(Rod(shapes.straight(0.3, 6, start=(-0.5, 0.5, 0.3)), Material(young=1e7, radius=0.01,
+                                                                                 radius2=0.005)), "ribbon")
+    world.step(3)
+    world.contact_force("lying")
+    for mode in ("explicit", "projection"):
+        w = World(dt=1e-5 if mode == "explicit" else 1e-2, mode=mode)
+        w.add_rod(Rod(shapes.cantilever(0.3, 6), mat), start="clamp")
+        w.step(2)
+    # The public one-rod path and a batch of rods.
+    for rod in (Rod(shapes.straight(0.3, 6), mat),
+                Rod(np.stack([shapes.straight(0.3, 6)] * 2), mat)):
+        rod.step_terms(rod.rest_state(), rod.rest_x)
+
+
+def prepare(stream=None) -> float:
+    """:func:`warm_up`, saying on ``stream`` (stderr) what is happening if it takes longer
+    than :data:`NOTICE_AFTER` seconds (a first run compiles); returns the seconds it took."""
+    stream = sys.stderr if stream is None else stream
+    done = threading.Event()
+
+    def notice():
+        if not done.wait(NOTICE_AFTER):
+            print("compiling derods' kernels (first run only; about a minute of CPU, cached for later runs)...",
+                  file=stream, flush=True)
+
+    t0 = time.perf_counter()
+    timer = threading.Thread(target=notice, daemon=True)
+    timer.start()
+    try:
+        warm_up()
+    finally:
+        done.set()
+        timer.join()
+    return time.perf_counter() - t0
