@@ -7,12 +7,15 @@ STAMP := $(VENV)/.installed
 VENV317 := .venv317
 STAMP317 := $(VENV317)/.installed
 
-.PHONY: demo core-demo test test317 venv317 bench report clean clean-cache
+.PHONY: demo core-demo test test317 venv317 bench report docs-images clean clean-cache
 
 $(STAMP): pyproject.toml
+	@echo "make: creating $(VENV) and installing derods with numpy, scipy, mujoco, numba (a minute or two)"
 	$(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/python -m pip install --quiet --upgrade pip
-	$(VENV)/bin/python -m pip install --quiet -e '.[dev]'
+	$(VENV)/bin/python -m pip install --progress-bar off -e '.[dev]'
+	@echo "make: compiling derods' kernels once (about a minute of CPU; later runs load them in a second)"
+	$(VENV)/bin/python -c "from derods.sim import warmup; warmup.prepare()"
 	touch $(STAMP)
 
 # The main job: drop rods onto a rigid scene and write out/drop.mp4 (headless).
@@ -30,9 +33,10 @@ bench: $(STAMP)
 	$(VENV)/bin/python benchmarks/bench_core.py
 
 $(STAMP317): pyproject.toml
+	@echo "make: creating $(VENV317) with mujoco 3.17.0 (the cable plugin) and derods"
 	$(PYTHON) -m venv $(VENV317)
 	$(VENV317)/bin/python -m pip install --quiet --upgrade pip
-	$(VENV317)/bin/python -m pip install --quiet "mujoco==3.17.0" -e '.[dev]'
+	$(VENV317)/bin/python -m pip install --progress-bar off "mujoco==3.17.0" -e '.[dev]'
 	touch $(STAMP317)
 
 venv317: $(STAMP317)
@@ -47,6 +51,10 @@ report: $(STAMP) $(STAMP317)
 	$(VENV317)/bin/python -m derods compare --full --backends cable --workers 2 \
 		--results docs/report/results.jsonl --report-dir docs/report
 	$(VENV)/bin/python -m derods compare --full --workers 2 --results docs/report/results.jsonl --report-dir docs/report
+
+# The README's pictures of the scenes and of the render quality.
+docs-images: $(STAMP)
+	$(VENV)/bin/python docs/images.py
 
 # numba's on-disk cache is keyed per source file: clear it after editing a kernel that others call.
 clean-cache:

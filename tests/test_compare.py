@@ -104,3 +104,13 @@ def test_backend_missing_from_this_mujoco_is_skipped_with_a_message(capsys):
     assert [j.params.backend for j in jobs] == ["der"]
     err = capsys.readouterr().err
     assert "skipping backend 'cable'" in err and "make venv317" in err
+
+
+def test_unknown_case_or_backend_is_refused_with_the_choices(capsys):
+    from derods.__main__ import main
+
+    assert main(["compare", "--cases", "bogus", "--results", "/tmp/never.jsonl"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("derods compare: error: unknown case 'bogus'; choose from cantilever")
+    assert main(["compare", "--backends", "der,abaqus", "--results", "/tmp/never.jsonl"]) == 2
+    assert "unknown backend 'abaqus'" in capsys.readouterr().err

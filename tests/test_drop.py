@@ -2,12 +2,19 @@
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
+import sys
+import time
+
 import numpy as np
 import pytest
 
 from derods import scenes
 from derods.apps import drop
 from derods.viz import render
+from derods import DivergenceError
 from derods.__main__ import main
 
 SMALL = ["--rods", "2", "--n-edges", "12", "--seconds", "0.6", "--fps", "10", "--width", "320",
@@ -71,6 +78,16 @@ def test_interrupted_drop_leaves_no_file(tmp_path, monkeypatch):
     (["--seconds", "-1"], r"seconds must be finite and > 0 \[s\]"),
     (["--young", "0"], r"young must be finite and > 0 \[Pa\]"),
     (["--out", "/nonexistent/folder/x.mp4"], "output folder '/nonexistent/folder' does not exist"),
+    (["--out", "/tmp"], r"--out '/tmp' is a folder; give a file name"),
+    (["--out", "/tmp/derods_video"], r"--out '/tmp/derods_video' must end in .mp4 \(it has no extension\)"),
+    (["--out", "/tmp/x.gif"], r"must end in .mp4 \(got '.gif'\)"),
+    (["--out", "/tmp/x.png"], r"must end in .mp4 \(got '.png'\)"),
+    (["--still", "/tmp/x.mp4"], r"--still '/tmp/x.mp4' must end in .png"),
+    (["--fps", "1000", "--seconds", "0.1"], r"fps 1000 asks for more frames than steps \(dt 0.005 s\): use fps <= 200"),
+    (["--dt", "1", "--seconds", "0.6"], r"0.6 s is not a whole number of steps of dt = 1 s"),
+    (["--seconds", "0.65"], r"0.65 s at 10 frames/s is 6.5 frames, not a whole number; use seconds = 0.6 or 0.7"),
+    (["--dt", "1", "--fps", "1", "--seconds", "4"], r"dt 1 s lets a rod falling from .* m move .* in one step"),
+    (["--young", "1e30"], r"young = 1e\+30 Pa is stiffer than any material"),
 ])
 def test_bad_input_is_a_one_line_error(argv, match, tmp_path, capsys):
     args = ["drop", "--out", str(tmp_path / "x.mp4")] + SMALL + argv
@@ -143,3 +160,50 @@ def test_a_plain_user_scene_gets_what_its_video_needs(tmp_path, capsys):
     assert video.shape[1:] == (270, 480, 3)
     assert video[-1].mean() > 60  # lit: the floor is grey, not black
     assert rod_pixels(video[0]) > 20
+
+
+def test_still_must_not_replace_the_video(tmp_path, capsys):
+    out = tmp_path / "x.mp4"
+    assert main(["drop", "--out", str(out), "--still", str(tmp_path / "x.mp4")] + SMALL) == 2
+    assert "must end in .png" in capsys.readouterr().err
+    same = tmp_path / "x.png"
+    assert main(["drop", "--out", str(same), "--still", str(same)] + SMALL) == 2
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_diverged_run_is_one_line_and_leaves_no_video(tmp_path, capsys):
+    """dt = 0.05 s: the rods stretch past 50 % on impact; the DivergenceError's message (step,
+    rod, fix) is the one line, exit 2, no file."""
+    assert main(["drop", "--out", str(tmp_path / "x.mp4"), "--dt", "0.05", "--fps", "20", "--seconds", "1",
+                 "--width", "320", "--height", "180", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "diverged at step" in err and "try a smaller dt" in err, err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_rods_that_sink_through_the_scene_are_reported(tmp_path, monkeypatch):
+    """Past the refusal of absurd steps (dt = 1 s), a run whose contacts do not hold is caught
+    while it is filmed: rods metres deep in the floor are an error, not a video."""
+    monkeypatch.setattr(drop, "check_step", lambda world: None)
+    p = drop.DropParams(dt=1.0, fps=1.0, seconds=4.0, width=160, height=90)
+    with pytest.raises(DivergenceError, match="went into the scene: a contact .* deep"):
+        drop.drop(p, tmp_path / "x.mp4", progress=False)
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("sig,code,word", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")])
+def test_a_signal_ends_the_run_with_one_line_and_no_file(tmp_path, sig, code, word):
+    """Ctrl-C (SIGINT, to the whole process group as a terminal sends it) or SIGTERM while a
+    video is being written: one line, exit 130 / 143, no video and no temporary file."""
+    proc = subprocess.Popen([sys.executable, "-m", "derods", "drop", "--out", "x.mp4", "--seconds", "20",
+                             "--width", "320", "--height", "180", "--quiet"], cwd=tmp_path, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True)
+    deadline = time.time() + 120
+    while time.time() < deadline and not any(p.name.startswith(".x.") for p in tmp_path.iterdir()):
+        time.sleep(0.1)  # wait until the video is being written
+    time.sleep(1.0)
+    os.killpg(proc.pid, sig) if sig == signal.SIGINT else proc.send_signal(sig)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == code, err
+    assert err.strip().splitlines() == [f"derods drop: {word}; no partial output was left"], err
+    assert list(tmp_path.iterdir()) == []

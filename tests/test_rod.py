@@ -69,6 +69,8 @@ def test_material_constants():
     ({"young": 1e6, "shear": -1.0}, r"shear must be finite and > 0 \[Pa\]"),
     ({"young": float("nan")}, "young"),
     ({"young": 1e6, "poisson": 0.7}, r"poisson must be in \(-1, 0.5\]"),
+    ({"young": 1e30}, r"young = 1e\+30 Pa is stiffer than any material.*<= 1e\+13 Pa"),
+    ({"young": 1e9, "shear": 1e14}, r"shear = 1e\+14 Pa is stiffer than any material"),
 ])
 def test_material_errors_name_the_parameter(kwargs, match):
     with pytest.raises(ValueError, match=match):
@@ -93,3 +95,14 @@ def test_rod_input_errors():
         derods.Rod(x[:, :2], MAT)
     with pytest.raises(ValueError, match="stretch_stiffness"):
         derods.Rod(x, MAT, stretch_stiffness=0.0)
+
+
+@pytest.mark.parametrize("gap", [0.0, 1e-9, 0.005])
+def test_a_rest_shape_folded_back_onto_itself_is_refused(gap):
+    """Two edges folded back (a turn of 180 degrees, or within 1 degree of it) have an
+    infinite discrete curvature: refused, naming the vertex. Exactly folded edges have
+    kb = 0 / 0, so the check measures the angle with atan2, not kb."""
+    x = np.array([[0.0, 0.0, 0.0], [0.5, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, gap, 0.0]])
+    with pytest.raises(ValueError, match=r"turns by 1(79|80)\.\d degrees at vertex 2"):
+        derods.Rod(x, MAT)
+    derods.Rod(np.array([[0.0, 0.0, 0.0], [0.5, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 0.05, 0.0]]), MAT)  # 174 degrees

@@ -209,6 +209,26 @@ def test_world_input_errors():
         w2 = World(integrator="RK4")
         w2.add_rod(rod)
         w2.compile()
+    with pytest.raises(ValueError, match=r"mass_damping must be finite and >= 0 \[1/s\], got nan"):
+        World(mass_damping=float("nan"))
+    with pytest.raises(ValueError, match="gravity must be 3 finite numbers"):
+        World(gravity=[0.0, 0.0, float("nan")])
+    with pytest.raises(ValueError, match=r"lightest vertex weighs .* below what MuJoCo integrates"):
+        World().add_rod(derods.Rod(shapes.straight(1.0, 5), derods.Material(young=1e6, radius=1e-9)))
+    folded = shapes.straight(1.0, 5)
+    folded[3:] = folded[2] - (folded[3:] - folded[2])  # back along the same line
+    with pytest.raises(ValueError, match="x turns by 180.0 degrees at vertex 2"):
+        World().add_rod(derods.Rod(shapes.straight(1.0, 5), derods.Material(young=1e6), natural_curvature=False),
+                        x=folded)
+
+
+def test_a_micron_thin_rod_builds_and_falls():
+    """r = 1 um: its vertex bodies' rotational inertia (never used: they only slide) would be
+    below MuJoCo's minimum; it is floored, and the rod falls freely as it should."""
+    w = World(dt=1e-3)
+    w.add_rod(derods.Rod(shapes.straight(0.1, 10, start=(0, 0, 1)), derods.Material(young=1e9, radius=1e-6)))
+    w.step(100)
+    np.testing.assert_allclose(w.positions()[:, 2], 1.0 - 0.5 * 9.81 * 0.1**2, atol=2e-3)
 
 
 def test_explicit_and_implicit_agree_below_the_stability_limit():

@@ -68,7 +68,12 @@ def available(backend: str) -> str | None:
 
 def plan(cases, backends, n_edges, dts, modes=("implicit",), young=1e8, **params) -> list[Job]:
     """Every supported combination as a list of jobs; a backend this MuJoCo lacks is
-    skipped with a message on stderr saying how to get it."""
+    skipped with a message on stderr saying how to get it. Unknown case or backend names
+    raise ValueError with the choices."""
+    for name, given, known in (("case", cases, bench.CASES), ("backend", backends, bench.BACKENDS)):
+        unknown = [c for c in given if c not in known]
+        if unknown:
+            raise ValueError(f"unknown {name} {', '.join(map(repr, unknown))}; choose from {', '.join(known)}")
     usable = []
     for backend in backends:
         why = available(backend)

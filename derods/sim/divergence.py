@@ -53,6 +53,10 @@ class Diagnosis:
     def badqacc(self, step: int, time: float):
         self._fail(None, "MuJoCo reported bad accelerations (BADQACC) and reset the state", step, time)
 
+    def not_positive_definite(self, what: str, step: int, time: float):
+        self._fail(None, f"the implicit system is not positive definite ({what}): the rods' stiffness is out of "
+                         "proportion to their masses (check young, radius, density)", step, time)
+
     def speed(self, rod: int, velocity: float, step: int, time: float):
         if not np.isfinite(velocity):
             self._fail(rod, "NaN or infinite state", step, time)

@@ -117,6 +117,12 @@ class Step:
     def unconstrained(self) -> None:
         """The implicit step without contact: factor A, solve for a0 (into self.a0)."""
         lay, t, s = self.layout, self.terms, self.system
+        try:
+            self._unconstrained(lay, t, s)
+        except ValueError as err:  # the banded Cholesky found A not positive definite
+            self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)
+
+    def _unconstrained(self, lay, t, s) -> None:
         _imp.unconstrained_step(t.band, t.grad, t.g_tw, t.coef, self.rod_tw, s.tw_lo, s.tw_hi, s.tw_c,
                                 lay.free_vertex, lay.free_body, lay.dofs, lay.mass, self.qvel, self.xfrc_applied,
                                 self.gravity, self.h, self.mass_damping, self.stiffness_damping, s.a_band, s.lt,

@@ -64,12 +64,17 @@ class RodEntry:
         return self.start_body if key == "start" else self.end_body
 
 
+#: Worlds with more vertices than this show progress while they are built.
+PROGRESS_FROM = 3000
+
+
 def add_to_spec(spec: mujoco.MjSpec, entries: list[RodEntry], contact, collide: bool) -> None:
     """Add every rod's bodies, slide joints and collision flex to ``spec``.
 
     contact: :class:`derods.sim.world.ContactParams`; collide: whether the scene has
     anything the rods can touch (without, their flexes collide with nothing and MuJoCo
-    does no collision work for them).
+    does no collision work for them). A large world (over PROGRESS_FROM vertices) shows
+    a progress bar on stderr.
     """
     poses = {}
     holders = {e.holder(k) for e in entries for k in ("start", "end")} - {None}
@@ -81,8 +86,18 @@ def add_to_spec(spec: mujoco.MjSpec, entries: list[RodEntry], contact, collide: 
         for body in holders:
             b = base.body(body).id
             poses[body] = (bdata.xpos[b].copy(), bdata.xmat[b].reshape(3, 3).copy())
+    total = sum(e.rod.n_vertices for e in entries)
+    bar = None
+    if total > PROGRESS_FROM:
+        from tqdm import tqdm
+
+        bar = tqdm(total=total, desc="building the world", unit="vertex", leave=False)
     for e in entries:
         _add_rod(spec, e, contact, collide, poses)
+        if bar is not None:
+            bar.update(e.rod.n_vertices)
+    if bar is not None:
+        bar.close()
 
 
 def _add_rod(spec, e: RodEntry, contact, collide: bool, poses: dict) -> None:

@@ -21,6 +21,7 @@ adds numerical damping of its own at large steps.
 
 from __future__ import annotations
 
+import sys
 import warnings
 from dataclasses import dataclass, replace
 
@@ -36,7 +37,7 @@ from .clamps import end_bodies, twist_boundary
 from .divergence import Diagnosis
 from .integrators import MODES as _STEPS
 from .integrators import explicit_dt_limit
-from .layout import END_KINDS, Layout, RodEntry, add_to_spec
+from .layout import END_KINDS, PROGRESS_FROM, Layout, RodEntry, add_to_spec
 
 #: Time stepping modes of a World ("auto" picks "implicit" or "explicit").
 MODES = ("auto", "implicit", "explicit", "projection")
@@ -194,6 +195,9 @@ class World:
             raise ValueError("the world has no rods; add one with add_rod()")
         collide = any(g.contype or g.conaffinity for g in self.spec.geoms)
         add_to_spec(self.spec, self._entries, self.contact, collide)
+        n_vertices = sum(e.rod.n_vertices for e in self._entries)
+        if n_vertices > PROGRESS_FROM:
+            print(f"compiling the MuJoCo model ({n_vertices} rod vertices)...", file=sys.stderr, flush=True)
         with warnings.catch_warnings():
             # Our flexes carry no MuJoCo elasticity by design: derods supplies it.
             warnings.filterwarnings("ignore", message=".*has no equality constraints or passive forces")
