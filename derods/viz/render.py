@@ -91,8 +91,11 @@ def check_output_path(out, suffixes: tuple[str, ...] | None = None, what: str = 
                          + (f" (got {out.suffix!r})" if out.suffix else " (it has no extension)"))
     if not out.parent.is_dir():
         raise ValueError(f"output folder {str(out.parent)!r} does not exist; create it or pass another path")
-    if not os.access(out.parent, os.W_OK | os.X_OK):
-        raise ValueError(f"output folder {str(out.parent)!r} is not writable; pass another path")
+    try:  # a real write: permissions alone do not tell (root, read-only or special file systems)
+        with tempfile.TemporaryFile(dir=out.parent):
+            pass
+    except OSError as err:
+        raise ValueError(f"output folder {str(out.parent)!r} is not writable ({err.strerror}); pass another path") from None
     return out
 
 
