@@ -66,8 +66,9 @@ def bishop_frames(x: np.ndarray, closed: bool, u0: np.ndarray | None = None) -> 
     u^0 is ``u0`` made perpendicular to t^0 (an arbitrary perpendicular when
     None); each next u^{j+1} is the parallel transport of u^j from t^j to t^{j+1}.
     The frames are orthonormal and twist-free along the rod (Bergou et al.
-    2008, section 4.2). The loop runs over edges once, vectorized over leading
-    batch dimensions; it is used to set rods up, not in the time step.
+    2008, section 4.2). The transport along the rod is sequential; it runs
+    compiled (:func:`derods._numba.frames.transport_along`), with
+    :func:`parallel_transport`'s formula. It sets rods up, not the time step.
 
     x: vertex positions [m], shape (..., n_vertices, 3).
     u0: first director, shape (..., 3), or None.
@@ -82,14 +83,13 @@ def bishop_frames(x: np.ndarray, closed: bool, u0: np.ndarray | None = None) -> 
         if np.any(nu < 1e-9):
             raise ValueError("u0 must not be parallel to the first edge tangent; pick another u0")
         u = u / nu[..., None]
+    from ._numba.frames import transport_along
+
     out = np.empty_like(t)
     out[..., 0, :] = u
-    for j in range(1, t.shape[-2]):
-        u = parallel_transport(u, t[..., j - 1, :], t[..., j, :])
-        # Re-orthonormalize against round-off accumulated over long rods.
-        u = u - _dot(u, t[..., j, :])[..., None] * t[..., j, :]
-        u = u / norm(u)[..., None]
-        out[..., j, :] = u
+    flat = out.reshape((-1,) + t.shape[-2:])
+    # Re-orthonormalized at every edge against round-off accumulated over long rods.
+    transport_along(np.ascontiguousarray(t.reshape(flat.shape)), flat)
     return out
 
 

@@ -77,6 +77,10 @@ def demo(args: argparse.Namespace) -> int:
 
 def drop(args: argparse.Namespace) -> int:
     """``derods drop``: see :mod:`derods.apps.drop`."""
+    if not args.quiet:
+        print(f"derods drop: {args.rods} {args.shape} rods x {args.n_edges} edges onto {args.scene}, "
+              f"{args.seconds:g} s at dt {args.dt:g} s, filmed at {args.fps:g} frames/s -> {args.out}",
+              file=sys.stderr, flush=True)
     import derods
     from derods.apps import drop as drop_mod
     from derods.sim import warmup

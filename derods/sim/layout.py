@@ -93,14 +93,12 @@ def add_to_spec(spec: mujoco.MjSpec, entries: list[RodEntry], contact, collide: 
 
         bar = tqdm(total=total, desc="building the world", unit="vertex", leave=False)
     for e in entries:
-        _add_rod(spec, e, contact, collide, poses)
-        if bar is not None:
-            bar.update(e.rod.n_vertices)
+        _add_rod(spec, e, contact, collide, poses, bar)
     if bar is not None:
         bar.close()
 
 
-def _add_rod(spec, e: RodEntry, contact, collide: bool, poses: dict) -> None:
+def _add_rod(spec, e: RodEntry, contact, collide: bool, poses: dict, bar=None) -> None:
     rod = e.rod
     mass = rod.vertex_mass
     r = rod.material.radius
@@ -123,6 +121,10 @@ def _add_rod(spec, e: RodEntry, contact, collide: bool, poses: dict) -> None:
             for k, axis in enumerate(np.eye(3)):
                 body.add_joint(name=f"{e.name}_{i}_{'xyz'[k]}", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis)
         names.append(body.name)
+        if bar is not None and i % 500 == 499:
+            bar.update(500)
+    if bar is not None:
+        bar.update(len(e.x0) % 500)
     flex = spec.add_flex()
     flex.name = e.name
     flex.dim = 1

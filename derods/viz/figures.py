@@ -56,7 +56,7 @@ def bezier_frames(out, control_points=BEZIER_DEMO, continuity: str = "C1", n_edg
     segments as dark spheres: across a C1 join the frames turn smoothly, across a
     C0 join they jump with the corner. Returns a summary dict.
     """
-    out = render.check_output_path(out)
+    out = render.check_output_path(out, render.IMAGE_SUFFIXES, "--out")
     p = shapes.bezier_control_points(control_points, continuity)
     x = shapes.bezier(control_points, n_edges, continuity)
     t = frames.tangents(x, False)
@@ -96,7 +96,7 @@ def michell_pair(out, n_edges: int = 50, below: float = 0.9, above: float = 1.2,
     from ..twist import TwistBoundary
     from ..sim.world import ContactParams, World
 
-    out = render.check_output_path(out)
+    out = render.check_output_path(out, render.IMAGE_SUFFIXES, "--out")
     mat = Material(young=1e7, radius=0.005, shear=0.5e7)  # alpha = beta
     theta_c = 2 * math.pi * math.sqrt(3) * mat.alpha / mat.beta
     radius = 0.2
