@@ -133,7 +133,7 @@ def _theta_hessian(d: Derivatives, n_edges: int, closed: bool) -> np.ndarray:
 
 def solve_newton(energy: Callable[[np.ndarray, int], Derivatives], theta0: np.ndarray,
                  closed: bool, boundary: TwistBoundary, tol: float = 1e-10,
-                 max_iter: int = 50) -> np.ndarray:
+                 max_iter: int = 50, slack: float = 1e-14) -> np.ndarray:
     """Minimize the energy over the free twist angles of one rod by damped Newton.
 
     energy: ``energy(theta, order)`` -> :class:`Derivatives` of every
@@ -141,6 +141,10 @@ def solve_newton(energy: Callable[[np.ndarray, int], Derivatives], theta0: np.nd
     theta0: starting twist angles [rad], shape (n_edges,).
     tol: stop when the largest free-angle gradient entry is below
         ``tol`` times the energy scale [N m].
+    slack: the line search accepts a step whose energy rises by at most ``slack``
+        times the energy (a sum of squares, resolved by round-off to ~1e-16 of
+        itself), so that near the solution full Newton steps are taken instead of
+        halved to nothing; a search that finds no step ends the solve.
     Returns the twist angles [rad], shape (n_edges,).
 
     The theta-theta Hessian is tridiagonal (cyclic on a ring); it is solved
@@ -174,13 +178,16 @@ def solve_newton(energy: Callable[[np.ndarray, int], Derivatives], theta0: np.nd
             except (np.linalg.LinAlgError, scipy.linalg.LinAlgError):
                 mu = max(1e-12, 10.0 * mu)
         e0 = d.energy
+        gs = float(g @ step)
         s = 1.0
         while True:
             trial = theta.copy()
             trial[free] += s * step
-            if energy(trial, 0).energy <= e0 + 1e-4 * s * float(g @ step) or s < 1e-8:
+            if energy(trial, 0).energy <= e0 + 1e-4 * s * gs + slack * abs(float(e0)) or s < 1e-8:
                 break
             s *= 0.5
+        if s < 1e-8:
+            break  # no descent left to find
         theta = trial
         mu *= 0.1 if mu > 1e-12 else 0.0
     return theta

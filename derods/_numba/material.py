@@ -24,8 +24,13 @@ from .banded import cholesky_ok, solve_into
 from .rod_geometry import add_joint_hessian, curvature_binormal, joint_stencil, reference_twist
 
 #: Newton on the twist angles: stop when the largest free gradient entry is below TOL times
-#: the largest diagonal entry of the theta Hessian (as derods.twist.solve_newton does).
+#: the largest diagonal entry of the theta Hessian. The line search accepts a step whose
+#: energy rises by at most SLACK times the energy: a sum of squares that round-off resolves
+#: to ~1e-16 of itself, so near the solution a full Newton step is taken (and converges
+#: quadratically) instead of being halved to nothing; a search that still finds no step
+#: ends the solve (as derods.twist.solve_newton does).
 TOL = 1e-10
+SLACK = 1e-14
 MAX_ITER = 50
 
 
@@ -140,9 +145,11 @@ def _newton_theta(theta, u, t, kbs, ref, vlen, mbar, wbar, b1, b2, beta, closed,
                 trial[e] += s * step[pos[e] - lo]
             e1 = _theta_energy(trial, u, t, kbs, ref, vlen, mbar, wbar, b1, b2, beta, closed, offset, 0, g, hd,
                                ho)
-            if e1 <= e0 + 1e-4 * s * gs or s < 1e-8:
+            if e1 <= e0 + 1e-4 * s * gs + SLACK * abs(e0) or s < 1e-8:
                 break
             s *= 0.5
+        if s < 1e-8:
+            break  # no descent left to find: round-off rules the energy
         theta[:] = trial
         mu = mu * 0.1 if mu > 1e-12 else 0.0
 
