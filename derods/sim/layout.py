@@ -1,8 +1,9 @@
 """Rods as MuJoCo bodies: what derods adds to a scene, and where each rod's numbers live.
 
-Each rod becomes a chain of MuJoCo bodies, one per vertex, each with three
-world-aligned slide joints (none for a vertex held by a pin or a clamp; a vertex
-held by a moving body rides on it as its child), and a 1D flex over those
+Each rod becomes a static body of its name holding a chain of MuJoCo bodies, one
+per vertex, each with three world-aligned slide joints (none for a vertex held
+by a pin or a clamp; a vertex held by a moving body rides on it as its child
+instead), and a 1D flex over those
 bodies with no MuJoCo elasticity: the flex only makes the edges collide as
 capsules of the rod radius (thin obstacles cannot slip between vertices).
 Everything elastic comes from derods.
@@ -16,6 +17,7 @@ dofs). It is built once and read every step.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import mujoco
@@ -66,6 +68,27 @@ class RodEntry:
 
 #: Worlds with more vertices than this show progress while they are built.
 PROGRESS_FROM = 3000
+#: Rod vertices built per MjSpec before it is attached to the scene. MuJoCo's
+#: ``add_body`` rebuilds the spec's element lists (time linear in the spec's size)
+#: and ``attach`` re-indexes every name of the parent (linear in the parent's size),
+#: so building all bodies in one spec costs N^2 and attaching rod by rod costs
+#: N * R; chunks of ~1000 vertices keep both small (measured at 1000 rods x 32
+#: vertices: 3.2 s, against ~60 s for one spec; benchmarks/bench_hair.py).
+CHUNK_VERTICES = 1000
+#: MuJoCo's arena guess grows as ~46 nv^2 bytes (15 GB at 19,200 dofs; it fails
+#: to allocate beyond), so a world with more rod dofs than this gets its own
+#: budget instead, unless its scene sets ``<size memory>`` itself.
+ARENA_GUESS_UP_TO = 3000
+#: That budget [bytes]: a base, so much per dof (contacts, constraint rows and the
+#: solver's sparse factor of a rod world need far less), and the broadphase's pair
+#: list, which mj_collision reserves for every pair of bodies and flexes (an int
+#: each: 2 n^2 bytes; only the pairs found are ever written).
+ARENA_BASE, ARENA_PER_DOF = 64 << 20, 4 << 10
+
+
+def arena_budget(n_dofs: int, n_bodies_flexes: int) -> int:
+    """MuJoCo arena [bytes] for a world of ``n_dofs`` dofs and that many bodies plus flexes."""
+    return ARENA_BASE + ARENA_PER_DOF * n_dofs + 2 * n_bodies_flexes ** 2
 
 
 def add_to_spec(spec: mujoco.MjSpec, entries: list[RodEntry], contact, collide: bool) -> None:
@@ -75,6 +98,11 @@ def add_to_spec(spec: mujoco.MjSpec, entries: list[RodEntry], contact, collide: 
     anything the rods can touch (without, their flexes collide with nothing and MuJoCo
     does no collision work for them). A large world (over PROGRESS_FROM vertices) shows
     a progress bar on stderr.
+
+    Each rod gets a static body of its own name, child of the world, holding its
+    vertex bodies ``f"{name}_{i}"`` (MuJoCo still treats them as "simple" bodies: a
+    diagonal mass matrix, and a compile linear in their number); a vertex held by a
+    scene body is that body's child instead.
     """
     poses = {}
     holders = {e.holder(k) for e in entries for k in ("start", "end")} - {None}
@@ -87,57 +115,111 @@ def add_to_spec(spec: mujoco.MjSpec, entries: list[RodEntry], contact, collide: 
             b = base.body(body).id
             poses[body] = (bdata.xpos[b].copy(), bdata.xmat[b].reshape(3, 3).copy())
     total = sum(e.rod.n_vertices for e in entries)
+    n_dofs = 3 * sum(int(np.sum(~e.fixed)) for e in entries)
+    if spec.memory == -1 and n_dofs > ARENA_GUESS_UP_TO:
+        n_bf = len(spec.bodies) + len(spec.flexes) + total + 2 * len(entries)
+        spec.memory = arena_budget(n_dofs, n_bf)
     bar = None
     if total > PROGRESS_FROM:
         from tqdm import tqdm
 
         bar = tqdm(total=total, desc="building the world", unit="vertex", leave=False)
+    # Vertices riding on scene bodies first, while the scene's spec is small.
     for e in entries:
-        _add_rod(spec, e, contact, collide, poses, bar)
+        for key in ("start", "end"):
+            if e.holder(key):
+                p, rmat = poses[e.holder(key)]
+                for i in e.held(key):
+                    _vertex_body(spec.body(e.holder(key)), e, int(i), rmat.T @ (e.x0[i] - p), joints=False)
+    chunk, size = None, 0
+    for e in entries:
+        if chunk is None:
+            chunk, size = mujoco.MjSpec(), 0
+        _add_rod_bodies(chunk.worldbody, e)
+        size += e.rod.n_vertices
+        if size >= CHUNK_VERTICES:
+            _attach(spec, chunk)
+            chunk = None
+            if bar is not None:
+                bar.update(size)
+    if chunk is not None:
+        _attach(spec, chunk)
+        if bar is not None:
+            bar.update(size)
+    for e in entries:
+        _add_flex(spec, e, contact, collide)
     if bar is not None:
         bar.close()
 
 
-def _add_rod(spec, e: RodEntry, contact, collide: bool, poses: dict, bar=None) -> None:
+def _vertex_body(parent, e: RodEntry, i: int, pos, joints: bool):
+    """Vertex i of rod e as a body under ``parent`` at ``pos`` (in the parent's frame)."""
     rod = e.rod
-    mass = rod.vertex_mass
-    r = rod.material.radius
-    holder = {int(i): e.holder(key) for key in ("start", "end") if e.holder(key) for i in e.held(key)}
+    mass = float(rod.vertex_mass[i])
+    body = parent.add_body(name=f"{e.name}_{i}", pos=pos)
+    body.mass = mass
+    # Vertex bodies only slide: their rotational inertia never acts, but MuJoCo refuses
+    # one below mjMINVAL (a rod thinner than ~0.5 mm would have it).
+    body.inertia = [max(0.5 * mass * rod.material.radius ** 2, INERTIA_FLOOR)] * 3
+    # The centre of mass at the body's origin makes it a "simple" body to MuJoCo.
+    body.ipos = [0.0, 0.0, 0.0]
+    body.iquat = [1.0, 0.0, 0.0, 0.0]
+    body.explicitinertial = True
+    if joints:
+        for axis in np.eye(3):
+            body.add_joint(type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis)
+    return body
+
+
+def _add_rod_bodies(worldbody, e: RodEntry) -> None:
+    """Rod e's static body and its vertex bodies (all but those riding on scene bodies)."""
+    root = worldbody.add_body(name=e.name)
+    riding = {int(i) for key in ("start", "end") if e.holder(key) for i in e.held(key)}
     fixed = e.fixed
-    names = []
     for i, xi in enumerate(e.x0):
-        if i in holder:
-            # A vertex held by a body rides on it, placed in the body's frame.
-            p, rmat = poses[holder[i]]
-            body = spec.body(holder[i]).add_body(name=f"{e.name}_{i}", pos=rmat.T @ (xi - p))
-        else:
-            body = spec.worldbody.add_body(name=f"{e.name}_{i}", pos=xi)
-        body.mass = float(mass[i])
-        # Vertex bodies only slide: their rotational inertia never acts, but MuJoCo refuses
-        # one below mjMINVAL (a rod thinner than ~0.5 mm would have it).
-        body.inertia = [max(0.5 * float(mass[i]) * r * r, INERTIA_FLOOR)] * 3
-        body.explicitinertial = True
-        if not fixed[i]:
-            for k, axis in enumerate(np.eye(3)):
-                body.add_joint(name=f"{e.name}_{i}_{'xyz'[k]}", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis)
-        names.append(body.name)
-        if bar is not None and i % 500 == 499:
-            bar.update(500)
-    if bar is not None:
-        bar.update(len(e.x0) % 500)
+        if i not in riding:
+            _vertex_body(root, e, i, xi, joints=not fixed[i])
+
+
+def _attach(spec: mujoco.MjSpec, chunk: mujoco.MjSpec) -> None:
+    """Attach a chunk of rods at the world's origin, keeping its names as they are.
+
+    MuJoCo warns that an empty prefix "may prevent the model from being saved
+    correctly"; the names are unique (rod names are), and ``to_xml`` saves them, so
+    that one warning is swallowed and any other is passed on.
+    """
+    previous = mujoco.get_mju_user_warning()
+
+    def warn(msg):
+        if "empty prefix" not in msg:
+            warnings.warn(f"MuJoCo: {msg}", stacklevel=3)
+
+    mujoco.set_mju_user_warning(warn)
+    try:
+        spec.attach(chunk, frame=spec.worldbody.add_frame(), prefix="")
+    finally:
+        mujoco.set_mju_user_warning(previous)
+
+
+def _add_flex(spec: mujoco.MjSpec, e: RodEntry, contact, collide: bool) -> None:
+    rod = e.rod
     flex = spec.add_flex()
     flex.name = e.name
     flex.dim = 1
-    flex.radius = r
-    flex.vertbody = names
+    flex.radius = rod.material.radius
+    flex.vertbody = [f"{e.name}_{i}" for i in range(rod.n_vertices)]
     j = np.arange(rod.n_edges)
     flex.elem = np.column_stack([j, (j + 1) % rod.n_vertices]).ravel().tolist()
     flex.rgba = list(e.rgba)
-    flex.contype = flex.conaffinity = 1 if (collide or contact.self_collision) else 0
+    touches = collide or contact.self_collision
+    flex.contype = 1 if touches else 0
+    # Rods touch one another unless told not to (hair: strands pass through each other).
+    flex.conaffinity = 1 if touches and (contact.rod_rod or contact.self_collision) else 0
     flex.condim = contact.condim
     flex.friction = [contact.friction, 0.005, 0.0001]
     flex.solref = list(contact.solref)
     flex.solimp = list(contact.solimp)
+    flex.margin = contact.margin
     flex.selfcollide = (mujoco.mjtFlexSelf.mjFLEXSELF_AUTO if contact.self_collision
                         else mujoco.mjtFlexSelf.mjFLEXSELF_NONE)
 
