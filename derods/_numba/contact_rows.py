@@ -199,3 +199,74 @@ def efc_triplets(is_sparse, nefc, nv, efc_j, rownnz, rowadr, colind):
             val[q] = efc_j[p]
             q += 1
     return row, col, val
+
+
+@nb.njit(cache=True)
+def correct_aref(ncon, con_geom, con_pos, con_frame, con_dim, con_friction, con_efc, geom_body, moving, body_vel,
+                 xpos, efc_type, efc_pos, efc_margin, efc_vel, efc_kbip, efc_aref, h, pyramidal, frictionless):
+    """Correct MuJoCo's contact rows' reference accelerations for what derods solves.
+
+    1. Bodies that move without dofs (mocap bodies): MuJoCo's row i has
+       aref_i = -B_i (J_i qdot) - K_i I_i r_i and cannot see their motion; a body with
+       velocity (v, w) adds w_i = j_i . (relative velocity, geom[1]'s side minus geom[0]'s,
+       at the contact point) to the row's velocity. moving (nbody,) bool; body_vel
+       (nbody, 6): linear [m/s] and angular [rad/s] velocity, world frame; xpos (nbody, 3).
+    2. Speculative rows (a margin > 0, see :class:`derods.sim.world.ContactParams`):
+       a row not yet touching (distance d >= 0) only keeps the end-of-step position
+       from crossing the surface, d + h (v_i + h a_i) >= 0, so aref_i = -(d / h + v_i) / h;
+       a touching one is MuJoCo's soft row without the margin, -B_i v_i - K_i I_i d.
+    Pyramidal and frictionless rows; elliptic ones are left as they are. h: step [s].
+    """
+    rel = np.empty(6)
+    for c in range(ncon):
+        adr = con_efc[c]
+        if adr < 0:
+            continue
+        t = efc_type[adr]
+        if t == frictionless:
+            n_rows = 1
+        elif t == pyramidal:
+            n_rows = 2 * (con_dim[c] - 1)
+        else:
+            continue
+        touched = False
+        rel[:] = 0.0
+        for side in range(2):
+            g = con_geom[c, side]
+            if g < 0:
+                continue
+            b = geom_body[g]
+            if not moving[b]:
+                continue
+            touched = True
+            sign = 1.0 if side == 1 else -1.0
+            rx = con_pos[c, 0] - xpos[b, 0]
+            ry = con_pos[c, 1] - xpos[b, 1]
+            rz = con_pos[c, 2] - xpos[b, 2]
+            wx, wy, wz = body_vel[b, 3], body_vel[b, 4], body_vel[b, 5]
+            vx = body_vel[b, 0] + wy * rz - wz * ry
+            vy = body_vel[b, 1] + wz * rx - wx * rz
+            vz = body_vel[b, 2] + wx * ry - wy * rx
+            for k in range(3):
+                f0, f1, f2 = con_frame[c, 3 * k], con_frame[c, 3 * k + 1], con_frame[c, 3 * k + 2]
+                rel[k] += sign * (f0 * vx + f1 * vy + f2 * vz)
+                rel[3 + k] += sign * (f0 * wx + f1 * wy + f2 * wz)
+        if not touched and efc_margin[adr] <= 0.0:
+            continue
+        for q in range(n_rows):
+            r = adr + q
+            w = rel[0]
+            if t == pyramidal:
+                # rows n + mu_k c_k, n - mu_k c_k; c: slide along t1, t2, spin about n, roll about t1, t2
+                k = q // 2
+                mu = con_friction[c, k]
+                w += mu * rel[1 + k] if q % 2 == 0 else -mu * rel[1 + k]
+            vel = efc_vel[r] + w
+            if efc_margin[r] > 0.0:
+                d = efc_pos[r]
+                if d >= 0.0:
+                    efc_aref[r] = -(d / h + vel) / h
+                else:
+                    efc_aref[r] = -efc_kbip[r, 1] * vel - efc_kbip[r, 0] * efc_kbip[r, 2] * d
+            else:
+                efc_aref[r] -= efc_kbip[r, 1] * w

@@ -12,8 +12,10 @@ from .banded import cholesky_into, solve_into
 
 @nb.njit(cache=True)
 def project_rod(x, inv_mass, rest_len, tol, max_iter):
-    """Project x (n_vertices, 3) in place; returns the iterations used, or -1 (with the
-    last strain left in x's distance from the manifold) if it did not converge."""
+    """Project x (n_vertices, 3) in place, moving vertex j by inv_mass[j] (0: held);
+    returns the iterations used, or -1 (with the last strain left in x's distance from
+    the manifold) if it did not converge. Edges between two held vertices keep their
+    length."""
     nv = x.shape[0]
     lo, hi = -1, -1
     for j in range(nv - 1):
@@ -36,6 +38,8 @@ def project_rod(x, inv_mass, rest_len, tol, max_iter):
             e2 = x[lo + j + 1, 2] - x[lo + j, 2]
             rest = rest_len[lo + j]
             c[j] = (e0 * e0 + e1 * e1 + e2 * e2) / rest - rest
+            if inv_mass[lo + j] + inv_mass[lo + j + 1] == 0.0:
+                c[j] = 0.0  # between two held vertices: nothing to move, left as it is
             worst = max(worst, abs(c[j] / rest))
             gvec[j, 0], gvec[j, 1], gvec[j, 2] = 2.0 * e0 / rest, 2.0 * e1 / rest, 2.0 * e2 / rest
         if worst < tol:
@@ -45,6 +49,8 @@ def project_rod(x, inv_mass, rest_len, tol, max_iter):
         for j in range(m):
             w0, w1 = inv_mass[lo + j], inv_mass[lo + j + 1]
             ab[0, j] = (gvec[j, 0] ** 2 + gvec[j, 1] ** 2 + gvec[j, 2] ** 2) * (w0 + w1)
+            if w0 + w1 == 0.0:
+                ab[0, j] = 1.0  # its multiplier is 0 (c[j] = 0) and couples to nothing
             if j < m - 1:
                 ab[1, j] = -(gvec[j, 0] * gvec[j + 1, 0] + gvec[j, 1] * gvec[j + 1, 1]
                              + gvec[j, 2] * gvec[j + 1, 2]) * w1
@@ -84,3 +90,47 @@ def projection_step(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, tol, m
                 k = 3 * p + a
                 accel[k] = ((xp[vtx, a] - x[vtx, a]) / h - v[k]) / h
     return -1
+
+
+@nb.njit(cache=True)
+def limit_strain(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, limit, tol, max_iter, xp):
+    """Strain limiting of the implicit step: predict x + h (v + h a0) for the free
+    vertices; every rod flagged in ``limited`` (n_rods,) whose predicted edge strain
+    exceeds ``limit`` is projected onto its rest lengths (to ``tol``) and its free dofs'
+    a0 (n,) [m/s^2] replaced by the acceleration that lands there. A rod the projection
+    cannot bring there in ``max_iter`` iterations (held taut between pins: no point of
+    the constraint set is near) keeps its a0: the limit is a best effort, not a
+    constraint. x, xp (n_vertices, 3): positions now and (scratch) predicted. Returns
+    (rods projected, rods left as they were)."""
+    xp[:] = x
+    for vtx in range(x.shape[0]):
+        p = place[vtx]
+        if p >= 0:
+            for a in range(3):
+                k = 3 * p + a
+                xp[vtx, a] += h * (v[k] + h * a0[k])
+    n_projected, n_left = 0, 0
+    for i in range(len(v_off) - 1):
+        if not limited[i]:
+            continue
+        v0, v1 = v_off[i], v_off[i + 1]
+        e0 = e_off[i]
+        worst = 0.0
+        for j in range(v1 - v0 - 1):
+            d0 = xp[v0 + j + 1, 0] - xp[v0 + j, 0]
+            d1 = xp[v0 + j + 1, 1] - xp[v0 + j, 1]
+            d2 = xp[v0 + j + 1, 2] - xp[v0 + j, 2]
+            worst = max(worst, abs(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) / rest_len[e0 + j] - 1.0))
+        if worst <= limit:
+            continue
+        if project_rod(xp[v0:v1], inv_mass[v0:v1], rest_len[e0:e_off[i + 1]], tol, max_iter) < 0:
+            n_left += 1
+            continue
+        n_projected += 1
+        for vtx in range(v0, v1):
+            p = place[vtx]
+            if p >= 0:
+                for a in range(3):
+                    k = 3 * p + a
+                    a0[k] = ((xp[vtx, a] - x[vtx, a]) / h - v[k]) / h
+    return n_projected, n_left

@@ -20,6 +20,16 @@ or two rods enter the Newton step as a low-rank update. Rows that couple a rod
 to other moving bodies, and elliptic-cone rows, keep the force MuJoCo's own
 solver computed for them in the same step.
 
+Two corrections of MuJoCo's reference accelerations come first
+(:class:`ReferenceCorrection`). Bodies that move without dofs (mocap bodies,
+posed by the user each step) have no velocity for MuJoCo, so a row against one
+would only see the penetration the move left, never the approach: they get the
+velocity of their last move. And a rod with a contact margin (speculative
+contacts, ``ContactParams.margin``) has rows before it touches: such a row only
+keeps the end-of-step position from crossing the surface, instead of MuJoCo's
+reading of a margin as a skin to push out of. Discrete collision detection
+otherwise finds a rod moving at v only once it is up to v h inside.
+
 Per step, one compiled call (:func:`derods._numba.contact.contact_step`) does it
 all: split MuJoCo's rows, rescale their weights to the implicit metric
 (:meth:`Rows.rescale`), and run Newton's method (:func:`solve`). :class:`Rows`
@@ -34,7 +44,7 @@ import mujoco
 import numpy as np
 
 from .._numba import contact as _k
-from .._numba.contact_rows import rows_band
+from .._numba.contact_rows import correct_aref, rows_band
 from ..stencil import XX_BANDWIDTH
 from .implicit import ImplicitSystem
 
@@ -194,3 +204,55 @@ class ContactStep:
             self.force[:] = 0.0
             self._force_is_zero = True
         return None
+
+
+class ReferenceCorrection:
+    """Mocap bodies' velocities, from their poses in consecutive steps, and the
+    correction of contact rows to them and to speculative margins (see the module
+    docstring). ``margin``: whether any rod has a contact margin.
+
+    Call :meth:`update` once per step after the mocap poses for the step are set and
+    before MuJoCo's forward pass; :meth:`correct` after it, before the rows are solved.
+    """
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, margin: bool):
+        self.body = np.flatnonzero(model.body_mocapid >= 0)
+        self.slot = model.body_mocapid[self.body]
+        self.pos = data.mocap_pos.copy()
+        self.quat = data.mocap_quat.copy()
+        self.vel = np.zeros((model.nbody, 6))
+        self.moving = np.zeros(model.nbody, dtype=bool)
+        self.any_moving = False
+        self.margin = margin
+        self.h = float(model.opt.timestep)
+        self.geom_body = np.ascontiguousarray(model.geom_bodyid, dtype=np.int64)
+        self._dq = np.zeros(4)
+        self._w = np.zeros(3)
+
+    def __bool__(self) -> bool:
+        return len(self.body) > 0 or self.margin
+
+    def update(self, data: mujoco.MjData) -> None:
+        """Velocities [m/s, rad/s] of the mocap bodies over the last step."""
+        self.any_moving = False
+        for b, k in zip(self.body, self.slot):
+            lin = (data.mocap_pos[k] - self.pos[k]) / self.h
+            # world-frame rotation from the old orientation to the new
+            mujoco.mju_mulQuat(self._dq, data.mocap_quat[k], self.quat[k] * np.array([1.0, -1.0, -1.0, -1.0]))
+            mujoco.mju_quat2Vel(self._w, self._dq, self.h)
+            self.vel[b, :3], self.vel[b, 3:] = lin, self._w
+            self.moving[b] = bool(np.any(lin != 0.0) or np.any(self._w != 0.0))
+            self.any_moving |= self.moving[b]
+        self.pos[:] = data.mocap_pos
+        self.quat[:] = data.mocap_quat
+
+    def correct(self, data: mujoco.MjData) -> None:
+        """Correct the contact rows' reference accelerations in ``data.efc_aref``."""
+        if not (self.any_moving or self.margin) or data.ncon == 0:
+            return
+        con = data.contact
+        correct_aref(data.ncon, con.geom, con.pos, con.frame, con.dim, con.friction, con.efc_address,
+                     self.geom_body, self.moving, self.vel, data.xpos, data.efc_type, data.efc_pos,
+                     data.efc_margin, data.efc_vel, data.efc_KBIP, data.efc_aref, self.h,
+                     int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL),
+                     int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS))

@@ -50,6 +50,10 @@ class Diagnosis:
     def strain(self, rod: int, strain: float, step: int, time: float):
         self._fail(rod, f"edge strain {strain:.3g} exceeds {MAX_STRAIN:g}", step, time)
 
+    def projection(self, rod: int, max_iter: int, step: int, time: float):
+        self._fail(rod, f"projecting its edges back to their rest lengths did not converge in {max_iter} "
+                        "iterations", step, time)
+
     def badqacc(self, step: int, time: float):
         self._fail(None, "MuJoCo reported bad accelerations (BADQACC) and reset the state", step, time)
 

@@ -55,7 +55,15 @@ class ContactParams:
     impedance closer to 1 makes contacts harder and lets less friction creep.
     condim: contact dimensionality (1 frictionless, 3 sliding friction, 4 or 6
     adds torsional / rolling). self_collision: edges of a rod collide with its
-    other edges (neighbours excluded); off by default.
+    other edges (neighbours excluded); off by default. rod_rod: rods touch one
+    another (on by default; hair turns it off, its strands passing through each
+    other; self_collision keeps it on). margin [m]: speculative contacts: rows
+    are made for surfaces closer than this, and (in the implicit mode, against
+    static and mocap bodies) only keep the rod from crossing the surface by the end
+    of the step; a rod faster than margin / dt still can. 0 (default): contacts are
+    found once the rod is inside, up to a step's travel deep. Against bodies that
+    move by their own dofs MuJoCo solves the rows, and reads a margin as a skin
+    the rod rests on.
     """
 
     friction: float = 1.0
@@ -63,6 +71,8 @@ class ContactParams:
     solimp: tuple[float, ...] = (0.9, 0.95, 0.001, 0.5, 2.0)
     condim: int = 3
     self_collision: bool = False
+    rod_rod: bool = True
+    margin: float = 0.0
 
 
 class World:
@@ -81,6 +91,11 @@ class World:
     contact: :class:`ContactParams` for all rods.
     integrator: MuJoCo integrator name for a new world ("implicitfast" by default);
         a scene keeps its own unless given.
+    strain_limit: the implicit mode's strain limit [relative edge strain]: an open
+        rod of the default stretch stiffness whose step would strain an edge beyond it
+        is projected back onto its rest lengths (see
+        :data:`derods.sim.integrators.STRAIN_LIMIT`, the default, 1e-3); ``math.inf``
+        turns it off.
 
     Add rods with :meth:`add_rod`, then :meth:`step`. The MuJoCo model is
     compiled on first use and available as :attr:`model` and :attr:`data`.
@@ -88,13 +103,16 @@ class World:
 
     def __init__(self, scene=None, *, dt: float | None = None, gravity=None, mode: str = "auto",
                  mass_damping: float = 0.0, stiffness_damping: float = 0.0,
-                 contact: ContactParams = ContactParams(), integrator: str | None = None):
+                 contact: ContactParams = ContactParams(), integrator: str | None = None,
+                 strain_limit: float | None = None):
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
         if dt is not None:
             _checks.positive("dt", dt, "s")
         _checks.non_negative("mass_damping", mass_damping, "1/s")
         _checks.non_negative("stiffness_damping", stiffness_damping, "s")
+        if strain_limit is not None and not strain_limit > 0:
+            raise ValueError(f"strain_limit must be > 0 (math.inf: off), got {strain_limit!r}")
         if gravity is not None:
             gravity = np.asarray(gravity, dtype=float)
             if gravity.shape != (3,) or not np.all(np.isfinite(gravity)):
@@ -119,6 +137,7 @@ class World:
         self.mass_damping = float(mass_damping)
         self.stiffness_damping = float(stiffness_damping)
         self.contact = contact
+        self.strain_limit = strain_limit
         self._entries: list[RodEntry] = []
         self._model = None
         self._data = None
@@ -201,6 +220,8 @@ class World:
         with warnings.catch_warnings():
             # Our flexes carry no MuJoCo elasticity by design: derods supplies it.
             warnings.filterwarnings("ignore", message=".*has no equality constraints or passive forces")
+            # Rod chunks are attached with their names as they are (see layout._attach).
+            warnings.filterwarnings("ignore", message=".*empty prefix may prevent the model")
             model = self.spec.compile()
         data = mujoco.MjData(model)
         mujoco.mj_forward(model, data)  # positions of every body
@@ -231,6 +252,8 @@ class World:
         diagnosis = Diagnosis(layout.names, h, self.mode, self.mass_damping)
         self._step = _STEPS[self.mode](model, data, layout, self._entries, rods, fr, ends, self.mass_damping,
                                        self.stiffness_damping, diagnosis)
+        if self.strain_limit is not None:
+            self._step.strain_limit = self.strain_limit
         self._model, self._data, self._layout = model, data, layout
 
     # -- access --------------------------------------------------------------
@@ -264,6 +287,11 @@ class World:
 
     def positions(self, rod: int | str = 0) -> np.ndarray:
         """Vertex positions [m] of a rod, shape (n_vertices, 3)."""
+        return self.all_positions()[self._layout.vertices(self._index(rod))]
+
+    def all_positions(self) -> np.ndarray:
+        """Vertex positions [m] of every rod, laid end to end, shape (total vertices, 3):
+        rod i's are rows ``vertex_offsets[i]:vertex_offsets[i + 1]``."""
         self.compile()
         # From qpos, not xpos: after mj_step, xpos still holds the kinematics of the
         # state *before* the integration, one step behind.
@@ -273,7 +301,13 @@ class World:
         x = np.empty_like(lay.x0)
         gather_positions(lay.x0, self._data.qpos, lay.qpos_adr, lay.free_vertex, self._data.xpos, lay.moved_vertex,
                          lay.moved_body, x)
-        return x[lay.vertices(self._index(rod))]
+        return x
+
+    @property
+    def vertex_offsets(self) -> np.ndarray:
+        """Where each rod's vertices start in :meth:`all_positions`, shape (n_rods + 1,)."""
+        self.compile()
+        return self._layout.v_off.copy()
 
     def set_positions(self, rod: int | str, x: np.ndarray) -> None:
         """Move a rod's free vertices to ``x`` [m], shape (n_vertices, 3), at rest.
