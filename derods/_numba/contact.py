@@ -310,35 +310,179 @@ def delassus_diagonal(lt, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, fptr, fcol
 
 
 @nb.njit(cache=True)
+def _root(parent, i):
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
+
+
+@nb.njit(cache=True)
 def contact_step(is_sparse, nefc, nv, efc_j, rownnz, rowadr, colind, efc_type, efc_force, efc_aref, efc_r,
-                 efc_diag_a, supported_types, local_of_dof, width, k_band, a_band, lt, g, tw_lo, tw_hi, tw_c, s,
-                 z, den, mass, m_coef, a0, a_out, force_out, max_iter, tol):
+                 efc_diag_a, supported_types, local_of_dof, dof_off, width, k_band, a_band, lt, g, tw_lo, tw_hi,
+                 tw_c, s, z, den, mass, m_coef, a0, a_out, force_out, max_iter, tol):
     """MuJoCo's constraint rows on the rod dofs, re-solved in the implicit metric.
+
+    Rods are independent in A (its band is block diagonal by rod), so the rows are
+    grouped into blocks of rods they bind together (one rod, or rods a rod-rod contact
+    joins) and each block is solved on its own (:func:`solve_block`): a rod no row
+    touches keeps a0 and costs nothing, and a block's Newton iterations and
+    refactorizations stay its own. dof_off (n_rods + 1,): each rod's local dof range.
+    Writes a_out (n,) [m/s^2] and force_out (n,) [N]. Returns 0 if no row touches a
+    rod dof (nothing written), 1 otherwise.
+    """
+    n = len(a0)
+    n_rods = len(dof_off) - 1
+    row, col, val = efc_triplets(is_sparse, nefc, nv, efc_j, rownnz, rowadr, colind)
+    # Rods bound together by rows (union-find over the rods each row touches).
+    parent = np.arange(n_rods)
+    row_rod = np.full(nefc, -1)
+    for p in range(len(row)):
+        loc = local_of_dof[col[p]]
+        if loc < 0:
+            continue
+        rod = np.searchsorted(dof_off, loc, side="right") - 1
+        r = row[p]
+        if row_rod[r] < 0:
+            row_rod[r] = rod
+        else:
+            a, b = _root(parent, row_rod[r]), _root(parent, rod)
+            if a != b:
+                parent[max(a, b)] = min(a, b)
+    touched = np.zeros(n_rods, dtype=np.bool_)
+    for r in range(nefc):
+        if row_rod[r] >= 0:
+            touched[row_rod[r]] = True
+    if not touched.any():
+        return 0
+    # Blocks: each root's rods in increasing order, their dofs laid end to end.
+    block_of_root = np.full(n_rods, -1)
+    n_blocks = 0
+    for rod in range(n_rods):
+        if touched[rod]:
+            root = _root(parent, rod)
+            if block_of_root[root] < 0:
+                block_of_root[root] = n_blocks
+                n_blocks += 1
+    for rod in range(n_rods):  # rods joined to a touched rod through one with no row of its own
+        root = _root(parent, rod)
+        touched[rod] = block_of_root[root] >= 0
+    block_of_rod = np.full(n_rods, -1)
+    size = np.zeros(n_blocks + 1, dtype=np.int64)
+    for rod in range(n_rods):
+        if touched[rod]:
+            block_of_rod[rod] = block_of_root[_root(parent, rod)]
+            size[block_of_rod[rod] + 1] += dof_off[rod + 1] - dof_off[rod]
+    start = np.cumsum(size)  # each block's slice of idx
+    idx = np.empty(start[n_blocks], dtype=np.int64)  # local dofs, block by block
+    compact = np.full(n, -1)  # a local dof's place in its block
+    fill = start[:n_blocks].copy()
+    for rod in range(n_rods):
+        if touched[rod]:
+            b = block_of_rod[rod]
+            for j in range(dof_off[rod], dof_off[rod + 1]):
+                compact[j] = fill[b] - start[b]
+                idx[fill[b]] = j
+                fill[b] += 1
+    # Rows and Jacobian entries, block by block (counting sort).
+    block_of_row = np.full(nefc, -1)
+    n_rows = np.zeros(n_blocks + 1, dtype=np.int64)
+    for r in range(nefc):
+        if row_rod[r] >= 0:
+            block_of_row[r] = block_of_rod[row_rod[r]]
+            n_rows[block_of_row[r] + 1] += 1
+    row_start = np.cumsum(n_rows)
+    rows = np.empty(row_start[n_blocks], dtype=np.int64)
+    row_in_block = np.full(nefc, -1)
+    fill = row_start[:n_blocks].copy()
+    for r in range(nefc):
+        b = block_of_row[r]
+        if b >= 0:
+            row_in_block[r] = fill[b] - row_start[b]
+            rows[fill[b]] = r
+            fill[b] += 1
+    n_nz = np.zeros(n_blocks + 1, dtype=np.int64)
+    for p in range(len(row)):
+        b = block_of_row[row[p]]
+        if b >= 0:
+            n_nz[b + 1] += 1
+    nz_start = np.cumsum(n_nz)
+    nz = np.empty(nz_start[n_blocks], dtype=np.int64)
+    fill = nz_start[:n_blocks].copy()
+    for p in range(len(row)):
+        b = block_of_row[row[p]]
+        if b >= 0:
+            nz[fill[b]] = p
+            fill[b] += 1
+    supported = np.zeros(nefc, dtype=np.bool_)
+    for r in range(nefc):
+        for q in range(len(supported_types)):
+            if efc_type[r] == supported_types[q]:
+                supported[r] = True
+    a_out[:] = a0
+    force_out[:] = 0.0
+    rod_of_tw = np.empty(len(tw_lo), dtype=np.int64)
+    for i in range(len(tw_lo)):
+        rod_of_tw[i] = np.searchsorted(dof_off, tw_lo[i], side="right") - 1
+    for b in range(n_blocks):
+        ids = idx[start[b]:start[b + 1]]
+        m = len(ids)
+        # The block's rows: row numbers within the block, columns in the block's dofs
+        # (m: a dof of no rod, so that split_rows sees the row reach elsewhere).
+        block_rows = rows[row_start[b]:row_start[b + 1]]
+        ps = nz[nz_start[b]:nz_start[b + 1]]
+        row_b = np.empty(len(ps), dtype=np.int64)
+        col_b = np.empty(len(ps), dtype=np.int64)
+        val_b = np.empty(len(ps))
+        for q in range(len(ps)):
+            p = ps[q]
+            row_b[q] = row_in_block[row[p]]
+            loc = local_of_dof[col[p]]
+            col_b[q] = compact[loc] if loc >= 0 else m
+            val_b[q] = val[p]
+        local_b = np.arange(m + 1)
+        local_b[m] = -1
+        tw = np.flatnonzero(block_of_rod[rod_of_tw] == b)
+        tw_lo_b = np.empty(len(tw), dtype=np.int64)
+        tw_hi_b = np.empty(len(tw), dtype=np.int64)
+        for q in range(len(tw)):
+            tw_lo_b[q] = compact[tw_lo[tw[q]]]
+            tw_hi_b[q] = compact[tw_hi[tw[q]] - 1] + 1
+        a_b = np.empty(m)
+        f_b = np.empty(m)
+        solve_block(row_b, col_b, val_b, block_rows, supported[block_rows], efc_force[block_rows],
+                    efc_aref[block_rows], efc_r[block_rows], efc_diag_a[block_rows], local_b, width,
+                    np.ascontiguousarray(k_band[:, ids]), np.ascontiguousarray(a_band[:, ids]), lt[ids],
+                    g[ids], tw_lo_b, tw_hi_b, tw_c[tw], s, z[ids], den[tw], mass[ids], m_coef, a0[ids], a_b, f_b,
+                    max_iter, tol)
+        for q in range(m):
+            a_out[ids[q]] = a_b[q]
+            force_out[ids[q]] = f_b[q]
+    return 1
+
+
+@nb.njit(cache=True)
+def solve_block(row, col, val, efc_rows, supported, efc_force, efc_aref, efc_r, efc_diag_a, local_of_dof, width,
+                k_band, a_band, lt, g, tw_lo, tw_hi, tw_c, s, z, den, mass, m_coef, a0, a_out, force_out, max_iter,
+                tol):
+    """One block of rods' rows (k of them, with the nonzeros row, col, val; efc_rows (k,):
+    MuJoCo's numbers of the rows, for reference only) re-solved in the implicit metric.
 
     1. Split the rows (:func:`split_rows`): derods solves the rows that touch only rod
        dofs and are of a supported type; the others keep MuJoCo's force (ext).
     2. Rescale the rows' weights D = 1 / R to the implicit metric, keeping MuJoCo's
        impedance: R = (R / diagA)_MuJoCo * diag(J A^-1 J^T).
     3. From a0 + A^-1 ext, minimize MuJoCo's primal problem by Newton's method.
-    Writes a_out (n,) [m/s^2] and force_out (n,) [N] (ext + J^T lam). Returns 0 if no
-    row touches a rod dof (nothing written), 1 otherwise.
+    Writes a_out (m,) [m/s^2] and force_out (m,) [N] (ext + J^T lam) on the block's dofs.
     """
     n = len(a0)
-    row, col, val = efc_triplets(is_sparse, nefc, nv, efc_j, rownnz, rowadr, colind)
-    supported = np.zeros(nefc, dtype=np.bool_)
-    for r in range(nefc):
-        for q in range(len(supported_types)):
-            if efc_type[r] == supported_types[q]:
-                supported[r] = True
-    efc, kb, col0, jw, jf, ext = split_rows(row, col, val, local_of_dof, supported, efc_force[:nefc], n, width)
+    efc, kb, col0, jw, jf, ext = split_rows(row, col, val, local_of_dof, supported, efc_force, n, width)
+    a = a0.copy()
     any_ext = False
     for j in range(n):
         if ext[j] != 0.0:
             any_ext = True
             break
-    if len(efc) == 0 and not any_ext:
-        return 0
-    a = a0.copy()
     if any_ext:
         e = ext.copy()
         sm_solve_into(lt, g, tw_lo, tw_hi, tw_c, s, z, den, e)
@@ -357,4 +501,3 @@ def contact_step(is_sparse, nefc, nv, efc_j, rownnz, rowadr, colind, efc_type, e
                            aref, d, max_iter, tol)
         force_out += transpose_apply_all(col0, jw, fptr, fcol, fval, lam, n)
     a_out[:] = a
-    return 1

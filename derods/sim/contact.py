@@ -175,14 +175,16 @@ class ContactStep:
     the corrected acceleration of the rod dofs out (one compiled call).
 
     model: the compiled model; local_of_dof (nv,): each MuJoCo dof's place among the
-    rods' free dofs, -1 elsewhere. After :meth:`__call__`, ``force`` (n,) [N] holds the
-    constraint force on the rod dofs.
+    rods' free dofs, -1 elsewhere; dof_off (n_rods + 1,): each rod's range of them.
+    After :meth:`__call__`, ``force`` (n,) [N] holds the constraint force on the rod
+    dofs.
     """
 
-    def __init__(self, model: mujoco.MjModel, local_of_dof: np.ndarray, n: int):
+    def __init__(self, model: mujoco.MjModel, local_of_dof: np.ndarray, dof_off: np.ndarray, n: int):
         self.is_sparse = bool(mujoco.mj_isSparse(model))
         self.nv = model.nv
         self.local_of_dof = np.ascontiguousarray(local_of_dof, dtype=np.int64)
+        self.dof_off = np.ascontiguousarray(dof_off, dtype=np.int64)
         self.force = np.zeros(n)
         self.a = np.zeros(n)
         self._force_is_zero = True
@@ -194,7 +196,7 @@ class ContactStep:
             touched = _k.contact_step(
                 self.is_sparse, nefc, self.nv, data.efc_J, data.efc_J_rownnz, data.efc_J_rowadr,
                 data.efc_J_colind, data.efc_type, data.efc_force, data.efc_aref, data.efc_R, data.efc_diagA,
-                SUPPORTED, self.local_of_dof, WINDOW, system.k_band, system.a_band, system.lt, system.g,
+                SUPPORTED, self.local_of_dof, self.dof_off, WINDOW, system.k_band, system.a_band, system.lt, system.g,
                 system.tw_lo, system.tw_hi, system.tw_c, system.s, system.z, system.den, system.mass,
                 system.m_coef, a0, self.a, self.force, MAX_ITER, TOL)
             if touched:

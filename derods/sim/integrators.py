@@ -169,7 +169,7 @@ class Implicit(Step):
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
-        self.contact = ContactStep(self.model, self.layout.local_of_dof, self.layout.n)
+        self.contact = ContactStep(self.model, self.layout.local_of_dof, self.layout.dof_off, self.layout.n)
         rod_flex = [mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_FLEX, e.name) for e in self.entries]
         margin = bool(np.any(self.model.flex_margin[rod_flex] > 0))
         self.reference = ReferenceCorrection(self.model, self.data, margin)
