@@ -31,6 +31,10 @@ from .sim.world import ContactParams, World
 SCENE, HEAD, SKULL, NECK = "head", "head", "skull", "neck"
 #: Head motions :class:`Motion` knows.
 MOTIONS = ("still", "shake", "nod", "turn")
+#: Roots sit this many strand radii off the skull, so that a strand at rest does not touch it.
+ROOT_LIFT = 1.5
+#: Air drag on every strand vertex [1/s] (World's mass_damping).
+MASS_DAMPING = 1.0
 #: Strain limit [relative edge strain] of the strands (World's ``strain_limit``): a tenth
 #: of the default, as hair is judged inextensible to 0.1 %.
 STRAIN_LIMIT = 1e-4
@@ -151,8 +155,11 @@ class Motion:
     """How the head moves: a rotation about the neck pivot, starting after ``settle`` [s].
 
     kind: "still", "shake" (turning left and right, amplitude 0.6 rad at 1 Hz), "nod"
-    (0.35 rad at 1 Hz) or "turn" (0.9 rad to one side over 0.8 s, held, and back).
+    (0.25 rad at 1 Hz) or "turn" (0.9 rad to one side over 0.8 s, held, and back).
     The rotation eases in over its first half period, so the head starts from rest.
+    Roots move at up to ~0.4 m/s (the crown in a nod, the temples in a shake): at
+    dt = 1e-2 s a root moves 40 % of a 1 cm segment in one step, under the 50 % strain
+    at which a step counts as diverged (a 0.35 rad nod reaches it).
     """
 
     kind: str = "shake"
@@ -172,7 +179,7 @@ class Motion:
         if self.kind == "shake":
             return 0.6 * ease * math.sin(2 * math.pi * s), 0.0
         if self.kind == "nod":
-            return 0.0, 0.35 * ease * math.sin(2 * math.pi * s)
+            return 0.0, 0.25 * ease * math.sin(2 * math.pi * s)
         # turn: a smooth step to 0.9 rad over 0.8 s, held 1 s, and back
         def step(u):
             u = min(max(u, 0.0), 1.0)
@@ -190,8 +197,22 @@ class Motion:
         return pivot + rot.reshape(3, 3) @ (center - pivot), q
 
 
+def strands(hair: Hair, centre: np.ndarray, skull_radius: float) -> list[np.ndarray]:
+    """Every strand's rest vertices [m], each (vertices, 3), rooted ROOT_LIFT radii off a
+    skull of ``skull_radius`` [m] at ``centre`` [m] (head unturned), curled as drawn
+    from ``hair.seed``."""
+    rng = np.random.default_rng(hair.seed + 1)
+    lift = skull_radius + ROOT_LIFT * hair.radius
+    out = []
+    for n in scalp_sites(hair.strands, hair.seed):
+        out.append(strand_shape(np.asarray(centre) + lift * n, n, hair.vertices, hair.segment,
+                                rng.uniform(*hair.curl_radius), rng.uniform(*hair.curl_pitch),
+                                rng.uniform(0.0, 2 * math.pi), int(rng.choice([-1, 1]))))
+    return out
+
+
 def build(hair: Hair = Hair(), dt: float = 1e-2, strand_contact: bool = False, friction: float = 0.3,
-          mass_damping: float = 1.0, margin: float = 0.005) -> World:
+          mass_damping: float = MASS_DAMPING, margin: float = 0.01) -> World:
     """A :class:`World` of the head scene with ``hair`` clamped to its head.
 
     dt: time step [s]. strand_contact: strands touch one another (off: they pass
@@ -199,25 +220,19 @@ def build(hair: Hair = Hair(), dt: float = 1e-2, strand_contact: bool = False, f
     friction coefficient. mass_damping [1/s]: air drag on every vertex. margin [m]:
     the contacts' speculative margin (see :class:`ContactParams`): strands swung
     into the skull at ~0.5 m/s travel 5 mm a step, and are stopped at its surface
-    instead of being found inside it (300 strands shaken: deepest penetration after
-    the first impact 0.15 mm with 5 mm, 4.4 mm with none).
+    instead of being found inside it (1000 strands nodding for 3 s: deepest
+    penetration 0.2 mm with 1 cm, 3.7 mm with 5 mm; 300 shaken, after the first
+    impact: 0.15 mm with 5 mm, 4.4 mm with none).
     Strands are named ``hair0``, ``hair1``, ...; the head does not move until a
     :class:`Motion` drives it (see :func:`drive`).
     """
     spec = mujoco.MjSpec.from_file(str(scenes.path(SCENE)))
     world = World(spec, dt=dt, mode="implicit", mass_damping=mass_damping, strain_limit=STRAIN_LIMIT,
                   contact=ContactParams(friction=friction, rod_rod=strand_contact, margin=margin))
-    center = np.asarray(spec.body(HEAD).pos, float)
-    skull = float(spec.geom(SKULL).size[0])
-    rng = np.random.default_rng(hair.seed + 1)
+    centre = np.asarray(spec.body(HEAD).pos, float)
     mat = hair.material
-    sites = scalp_sites(hair.strands, hair.seed)
-    # Roots half a radius off the skull, so that a strand at rest does not touch it.
-    lift = skull + 1.5 * hair.radius
-    for k, n in enumerate(sites):
-        x = strand_shape(center + lift * n, n, hair.vertices, hair.segment,
-                         rng.uniform(*hair.curl_radius), rng.uniform(*hair.curl_pitch),
-                         rng.uniform(0.0, 2 * math.pi), int(rng.choice([-1, 1])))
+    rng = np.random.default_rng(hair.seed + 2)
+    for k, x in enumerate(strands(hair, centre, float(spec.geom(SKULL).size[0]))):
         shade = rng.uniform(0.75, 1.25)
         rgba = (min(1.0, 0.36 * shade), min(1.0, 0.22 * shade), min(1.0, 0.12 * shade), 1.0)
         world.add_rod(Rod(x, mat), f"hair{k}", start="clamp", start_body=HEAD, rgba=rgba)
@@ -241,12 +256,20 @@ def drive(world: World, motion: Motion):
     return before_step
 
 
-def _head(world: World) -> tuple[np.ndarray, np.ndarray, float]:
-    """Skull centre [m] (3,), head orientation (3, 3) and skull radius [m], now."""
-    model, data = world.model, world.data
-    mujoco.mj_kinematics(model, data)
+def skull_pose(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray, float]:
+    """Skull centre [m] (3,), head orientation (3, 3) and skull radius [m] as the head's
+    mocap pose sets them now (whether or not MuJoCo's kinematics ran since)."""
+    body = model.body(HEAD).id
+    mocap = int(model.body_mocapid[body])
+    rot = np.empty(9)
+    mujoco.mju_quat2Mat(rot, data.mocap_quat[mocap])
+    rot = rot.reshape(3, 3)
     g = model.geom(SKULL).id
-    return data.geom_xpos[g].copy(), data.geom_xmat[g].reshape(3, 3).copy(), float(model.geom_size[g, 0])
+    return data.mocap_pos[mocap] + rot @ model.geom_pos[g], rot, float(model.geom_size[g, 0])
+
+
+def _head(world: World) -> tuple[np.ndarray, np.ndarray, float]:
+    return skull_pose(world.model, world.data)
 
 
 def _all_positions(world: World) -> np.ndarray:
@@ -254,16 +277,21 @@ def _all_positions(world: World) -> np.ndarray:
     return world.all_positions().reshape(len(world.rods), -1, 3)
 
 
+def sphere_penetration(x: np.ndarray, centre: np.ndarray, sphere_radius: float, strand_radius: float) -> float:
+    """Deepest penetration [m] of strands x [m] (strands, vertices, 3), capsules of
+    ``strand_radius`` [m] along each edge, into a sphere; 0 if none touches it."""
+    a, b = x[:, :-1], x[:, 1:]
+    d = b - a
+    s = np.clip(np.einsum("rei,rei->re", centre - a, d) / np.maximum(np.einsum("rei,rei->re", d, d), 1e-300), 0, 1)
+    gap = np.linalg.norm(a + s[..., None] * d - centre, axis=-1) - sphere_radius - strand_radius
+    return float(max(0.0, -gap.min()))
+
+
 def penetration(world: World) -> float:
     """Deepest penetration [m] of any strand (a capsule of its radius along each edge)
     into the skull, now; 0 if none touches it."""
     c, _, skull = _head(world)
-    x = _all_positions(world)
-    a, b = x[:, :-1], x[:, 1:]
-    d = b - a
-    s = np.clip(np.einsum("rei,rei->re", c - a, d) / np.maximum(np.einsum("rei,rei->re", d, d), 1e-300), 0, 1)
-    gap = np.linalg.norm(a + s[..., None] * d - c, axis=-1) - skull - world.rods[0].material.radius
-    return float(max(0.0, -gap.min()))
+    return sphere_penetration(_all_positions(world), c, skull, world.rods[0].material.radius)
 
 
 def root_drift(world: World, hair: Hair) -> float:
@@ -271,7 +299,7 @@ def root_drift(world: World, hair: Hair) -> float:
     the head), now: clamped roots ride on the head, so this stays at round-off."""
     c, rot, skull = _head(world)
     sites = scalp_sites(hair.strands, hair.seed)
-    want = c + (skull + 1.5 * hair.radius) * sites @ rot.T
+    want = c + (skull + ROOT_LIFT * hair.radius) * sites @ rot.T
     roots = _all_positions(world)[:, 0]
     return float(np.linalg.norm(roots - want, axis=1).max())
 

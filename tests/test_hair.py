@@ -90,3 +90,57 @@ def test_hair_does_not_sink_into_the_head(shaken):
     late = rec["pen"][100:]
     assert w.data.ncon > 0
     assert late.max() < 0.5 * h.radius  # measured 0.03 mm here; 1.3 mm with margin=0
+
+
+@pytest.mark.parametrize("backend", ["der", "flex"])
+def test_bench_hair_records_what_the_issue_asks(backend):
+    """``derods bench hair``'s record: build time, step cost, stability, penetration after
+    impacts, strain and root drift, for derods and for the native flexcomps."""
+    from derods.bench import hair as hair_bench
+
+    rec = hair_bench.run(hair_bench.HairCase(strands=6, vertices=12, seconds=0.6, backend=backend))
+    for key in ("build_s", "us_per_step", "median_us_per_step", "stable", "penetration", "penetration_max",
+                "max_strain", "root_drift", "strands", "vertices", "dt", "motion"):
+        assert key in rec, key
+    assert rec["stable"] and rec["steps"] == 60 and rec["build_s"] > 0
+    assert rec["root_drift"] < 1e-6  # both ride on the head
+    if backend == "der":
+        assert rec["max_strain"] <= hair.STRAIN_LIMIT * (1 + 1e-6)
+    line = hair_bench.format_record(rec)
+    assert f"hair {backend}: 6 strands x 12 vertices" in line
+
+
+def test_bench_hair_refuses_bad_input():
+    from derods.bench import hair as hair_bench
+
+    with pytest.raises(ValueError, match="backend must be one of"):
+        hair_bench.HairCase(backend="cable")
+    with pytest.raises(ValueError, match="dt must be finite and > 0"):
+        hair_bench.HairCase(dt=0.0)
+
+
+def test_derods_hair_writes_a_video_and_a_still(tmp_path, capsys):
+    """The command with small settings: exit 0, the video and the PNG, a summary line
+    with the build time, penetration and strain; strands are drawn as lines."""
+    from derods.__main__ import main
+    from derods.viz import render
+
+    out, still = tmp_path / "h.mp4", tmp_path / "h.png"
+    assert main(["hair", "--strands", "40", "--vertices", "16", "--seconds", "0.4", "--fps", "10", "--width", "320",
+                 "--height", "180", "--out", str(out), "--still", str(still), "--quiet"]) == 0
+    text = capsys.readouterr().out
+    assert "40 strands x 16 vertices built in" in text and "deepest strand in the skull" in text
+    assert out.stat().st_size > 1000
+    img = render.mediapy().read_image(still)
+    assert img.shape == (180, 320, 3)
+    # Hair-coloured pixels (red > green > blue, darkish): the strands are drawn.
+    r, g, b = (img[..., k].astype(int) for k in range(3))
+    assert np.count_nonzero((r > g + 20) & (g > b + 10) & (r < 200)) > 50
+
+
+def test_derods_hair_refuses_bad_input(tmp_path, capsys):
+    from derods.__main__ import main
+
+    assert main(["hair", "--strands", "0", "--out", str(tmp_path / "h.mp4"), "--quiet"]) == 2
+    assert "strands must be an integer >= 1" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []

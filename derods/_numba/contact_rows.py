@@ -214,6 +214,9 @@ def correct_aref(ncon, con_geom, con_pos, con_frame, con_dim, con_friction, con_
     2. Speculative rows (a margin > 0, see :class:`derods.sim.world.ContactParams`):
        a row not yet touching (distance d >= 0) only keeps the end-of-step position
        from crossing the surface, d + h (v_i + h a_i) >= 0, so aref_i = -(d / h + v_i) / h;
+       a moving body is already posed for the end of the step when MuJoCo measures d, so
+       its velocity enters v_i only where it approaches (keeping clear of its next pose),
+       never to allow the rod closer than its surface now;
        a touching one is MuJoCo's soft row without the margin, -B_i v_i - K_i I_i d.
     Pyramidal and frictionless rows; elliptic ones are left as they are. h: step [s].
     """
@@ -265,6 +268,10 @@ def correct_aref(ncon, con_geom, con_pos, con_frame, con_dim, con_friction, con_
             if efc_margin[r] > 0.0:
                 d = efc_pos[r]
                 if d >= 0.0:
+                    # The body is already posed for the end of the step: its own motion
+                    # only counts where it comes closer (the next pose), never as room.
+                    if rel[0] > 0.0:
+                        vel -= rel[0]
                     efc_aref[r] = -(d / h + vel) / h
                 else:
                     efc_aref[r] = -efc_kbip[r, 1] * vel - efc_kbip[r, 0] * efc_kbip[r, 2] * d

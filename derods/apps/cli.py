@@ -2,12 +2,14 @@
 
 Commands:
   drop    drop rods onto a rigid scene and write an MP4 (headless).
+  hair    a thousand curled strands on a shaking, nodding or turning head, as an MP4.
   frames  draw a Bezier rod with its Bishop frames to a PNG (C0 or C1 joins).
   michell draw twisted rings below and above Michell's critical twist to a PNG.
   view    open a scene with rods in MuJoCo's interactive viewer (needs a display).
   compare sweep benchmark cases over backends and resolutions; write a report.
   demo    build rods from the paper's test cases and print their frames and energies.
-  bench   run a benchmark case (cantilever, frequency, drop, michell, circle, twist) and print records.
+  bench   run a benchmark case (cantilever, frequency, drop, michell, circle, twist, stability, extreme,
+          hair) and print records.
 """
 
 from __future__ import annotations
@@ -104,6 +106,32 @@ def drop(args: argparse.Namespace) -> int:
     return 0
 
 
+def hair(args: argparse.Namespace) -> int:
+    """``derods hair``: see :mod:`derods.apps.hair`."""
+    if not args.quiet:
+        print(f"derods hair: {args.strands} strands x {args.vertices} vertices on a head ({args.motion}), "
+              f"{args.seconds:g} s at dt {args.dt:g} s, filmed at {args.fps:g} frames/s -> {args.out}",
+              file=sys.stderr, flush=True)
+    from derods import hair as hair_mod
+    from derods.apps import drop as drop_mod
+    from derods.apps import hair as app
+    from derods.sim import warmup
+    from derods.viz import render
+
+    params = app.HairParams(hair=hair_mod.Hair(strands=args.strands, vertices=args.vertices, seed=args.seed),
+                            motion=args.motion, seconds=args.seconds, dt=args.dt, fps=args.fps, width=args.width,
+                            height=args.height, strand_contact=args.strand_contact)
+    drop_mod.check_outputs(args.out, args.still)
+    render.frame_plan(params.seconds, params.fps, params.dt)
+    warmup.prepare()
+    s = app.run(params, args.out, progress=not args.quiet, still=args.still, quality=args.quality)
+    print(f"wrote {s['out']}: {s['frames']} frames, {s['sim_s']:.4g} s simulated ({s['steps']} steps), "
+          f"{s['strands']} strands x {s['vertices']} vertices built in {s['build_s']:.1f} s; deepest strand in "
+          f"the skull {s['max_penetration'] * 1e3:.2f} mm, largest strain {s['max_strain']:.1e}"
+          + (f"; still {args.still}" if args.still else ""))
+    return 0
+
+
 def view(args: argparse.Namespace) -> int:
     """``derods view``: the drop scene in MuJoCo's viewer; drag a rod with the mouse
     (double-click it, then Ctrl + right-drag) and the pull enters the implicit step."""
@@ -181,6 +209,15 @@ def bench(args: argparse.Namespace) -> int:
     """``derods bench CASE``: see :mod:`derods.bench.cases`."""
     from derods import bench as bench_mod
 
+    if args.case == "hair":
+        from derods.bench import hair as hair_bench
+
+        given = {k: getattr(args, k) for k in ("strands", "vertices", "dt", "motion", "seconds", "backend")
+                 if getattr(args, k) is not None}
+        return hair_bench.main(hair_bench.HairCase(**given), args.json)
+    for name in ("strands", "vertices", "motion", "seconds"):
+        if getattr(args, name) is not None:
+            raise ValueError(f"--{name} is an option of the hair case only")
     return bench_mod.main(args.case, bench_mod.params_from_args(args), args.json)
 
 
@@ -223,6 +260,25 @@ def main(argv: list[str] | None = None) -> int:
                         "full (the scene's own settings), auto (fast on software GL; default)")
     d.add_argument("--quiet", action="store_true", help="no progress bar")
     d.set_defaults(func=drop)
+
+    hp = sub.add_parser("hair", help="curled strands on a moving head, filmed to an MP4 (headless)")
+    hp.add_argument("--strands", type=int, default=1000, help="number of strands (default 1000)")
+    hp.add_argument("--vertices", type=_positive_int, default=32, help="vertices per strand (default 32)")
+    hp.add_argument("--motion", choices=["shake", "nod", "turn", "still"], default="shake",
+                    help="head motion (default shake)")
+    hp.add_argument("--seconds", type=float, default=3.0, help="simulated time [s] (default 3)")
+    hp.add_argument("--dt", type=float, default=1e-2, help="time step [s] (default 1e-2)")
+    hp.add_argument("--fps", type=float, default=25.0, help="video frames per second (default 25)")
+    hp.add_argument("--width", type=int, default=960, help="video width [pixels] (default 960)")
+    hp.add_argument("--height", type=int, default=540, help="video height [pixels] (default 540)")
+    hp.add_argument("--out", default="hair.mp4", help="output MP4 path (default hair.mp4)")
+    hp.add_argument("--still", default=None, help="also write the last frame to this PNG")
+    hp.add_argument("--strand-contact", action="store_true", help="strands touch one another (default: off)")
+    hp.add_argument("--seed", type=int, default=0, help="seed of the roots' jitter and the curls (default 0)")
+    hp.add_argument("--quality", choices=["auto", "fast", "full"], default="auto",
+                    help="rendering quality, as for drop (default auto)")
+    hp.add_argument("--quiet", action="store_true", help="no progress bar")
+    hp.set_defaults(func=hair)
 
     f = sub.add_parser("frames", help="draw a Bezier rod with its Bishop frames to a PNG")
     f.add_argument("--control", default=None,
@@ -271,7 +327,7 @@ def main(argv: list[str] | None = None) -> int:
 
     b = sub.add_parser("bench", help="run a benchmark case and print one record per run")
     b.add_argument("case", choices=["cantilever", "frequency", "drop", "michell", "circle", "twist", "stability",
-                                           "extreme"])
+                                     "extreme", "hair"])
     b.add_argument("--backend", default="der", choices=["der", "flex", "cable"],
                    help="der (default), flex (MuJoCo's 1D flexcomp), cable (MuJoCo 3.x)")
     b.add_argument("--n-edges", type=_positive_int, default=None, help="edges per rod (default 20)")
@@ -285,6 +341,11 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--density", type=float, default=None, help="density [kg/m^3] (default 1000)")
     b.add_argument("--mode", choices=["implicit", "explicit", "projection"], default=None,
                    help="default implicit")
+    b.add_argument("--strands", type=int, default=None, help="hair: number of strands (default 1000)")
+    b.add_argument("--vertices", type=_positive_int, default=None, help="hair: vertices per strand (default 32)")
+    b.add_argument("--motion", choices=["shake", "nod", "turn", "still"], default=None,
+                   help="hair: head motion (default shake)")
+    b.add_argument("--seconds", type=float, default=None, help="hair: simulated time [s] (default 1.5)")
     b.add_argument("--json", action="store_true", help="print one JSON object per line")
     b.set_defaults(func=bench)
     args = parser.parse_args(argv)

@@ -110,8 +110,12 @@ def _compose(spec: mujoco.MjSpec, integrator, dt: float, gravity, scene: str | N
 
 def flex_spec(points: np.ndarray, radius: float, mass: float, young: float, poisson: float,
               closed: bool = False, pinned=(), dt: float = 1e-2, gravity=(0.0, 0.0, -9.81),
-              scene: str | None = None, contact_solref=(0.005, 1.0)) -> mujoco.MjSpec:
-    """One flexcomp rod (named "rod") through ``points`` [m] (n + 1, 3), in a scene of mjcf/."""
+              scene: str | None = None, contact_solref=(0.005, 1.0), holder: str | None = None) -> mujoco.MjSpec:
+    """One flexcomp rod (named "rod") through ``points`` [m] (n + 1, 3), in a scene of mjcf/.
+
+    holder: the name of a body (without joints, at the origin) to put the flexcomp in, so
+    that its pinned points belong to that body (and ride on whatever it is attached to);
+    None: the world holds them."""
     n = len(points) if closed else len(points) - 1
     elem = np.column_stack([np.arange(n), (np.arange(n) + 1) % len(points)])
     flex = ET.Element("flexcomp", name="rod", type="direct", dim="1", point=_numbers(points),
@@ -122,6 +126,10 @@ def flex_spec(points: np.ndarray, radius: float, mass: float, young: float, pois
     ET.SubElement(flex, "edge", equality="true", solref="0.0001 1")
     ET.SubElement(flex, "contact", selfcollide="none", condim="3", solref=_numbers(contact_solref, "{!r}"))
     ET.SubElement(flex, "elasticity", young=repr(float(young)), poisson=repr(float(poisson)), damping="0")
+    if holder is not None:
+        body = ET.Element("body", name=holder)
+        body.append(flex)
+        flex = body
     return _compose(_macro_spec(flex), mujoco.mjtIntegrator.mjINT_DISCRETE, dt, gravity, scene)
 
 
