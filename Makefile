@@ -45,11 +45,13 @@ venv317: $(STAMP317)
 test317: $(STAMP317)
 	$(VENV317)/bin/python -m pytest -q tests317
 
-# The sample comparison report (docs/report/): accuracy sweeps, stability map and extreme
-# cases for derods and MuJoCo's native flexcomp. Resumes where a previous run stopped.
+# The sample comparison report (docs/report/): accuracy sweeps, stability map, extreme
+# cases and hair at scale for derods and MuJoCo's native flexcomp. Resumes where a previous
+# run stopped.
 report: $(STAMP) $(STAMP317)
 	$(VENV317)/bin/python -m derods compare --full --backends cable --workers 2 \
 		--results docs/report/results.jsonl --report-dir docs/report
+	$(VENV)/bin/python benchmarks/bench_hair.py --append-to docs/report/results.jsonl
 	$(VENV)/bin/python -m derods compare --full --workers 2 --results docs/report/results.jsonl --report-dir docs/report
 
 # The README's pictures of the scenes and of the render quality.

@@ -12,7 +12,7 @@ the scene) and over all R. The VM is shared: read ratios and exponents, not
 milliseconds.
 
 Run: .venv/bin/python benchmarks/bench_hair.py [--strands 10,100,300,1000] [--repeat 1]
-     [--seconds 1] [--flex-up-to 300] [--json FILE]
+     [--seconds 1] [--flex-up-to 300] [--json FILE] [--append-to RESULTS.jsonl]
 Targets (issue "hair at scale"): 1000 strands built in <= 30 s and stepped at >= 10
 steps/s; exponent <= 1.1 for build and step.
 """
@@ -44,18 +44,35 @@ def main() -> int:
     ap.add_argument("--seconds", type=float, default=1.0)
     ap.add_argument("--flex-up-to", type=int, default=300)
     ap.add_argument("--json", default=None, help="also write the records here (JSON lines)")
+    ap.add_argument("--append-to", default=None,
+                    help="append each record to this results file as it is made (the report's: "
+                         "docs/report/results.jsonl), skipping runs it already holds")
     args = ap.parse_args()
     sizes = [int(v) for v in args.strands.split(",")]
-    records = []
+    records, done = [], set()
+    if args.append_to and os.path.exists(args.append_to):
+        # Resumable, like the report's sweep: runs the results file holds are not repeated.
+        with open(args.append_to) as f:
+            for line in f:
+                try:
+                    old = json.loads(line)
+                except json.JSONDecodeError:
+                    continue
+                if old.get("case") == "hair" and old.get("vertices") == 32:
+                    done.add((old["backend"], old["strands"]))
+                    records.append(old)
     for rep in range(args.repeat):
         for r in sizes:
             for backend in ("der", "flex"):
-                if backend == "flex" and r > args.flex_up_to:
+                if (backend == "flex" and r > args.flex_up_to) or (backend, r) in done:
                     continue
                 rec = hair_bench.run(hair_bench.HairCase(strands=r, seconds=args.seconds, backend=backend))
                 rec["repeat"] = rep
                 records.append(rec)
                 print(hair_bench.format_record(rec), flush=True)
+                if args.append_to:
+                    with open(args.append_to, "a") as f:
+                        f.write(json.dumps(rec) + "\n")
     if args.json:
         tmp = args.json + ".part"
         with open(tmp, "w") as f:

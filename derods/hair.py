@@ -88,8 +88,8 @@ class Hair:
 
 def hairline(azimuth: np.ndarray) -> np.ndarray:
     """Largest polar angle [rad] from the crown that carries hair, by azimuth [rad] (0: the
-    face, +x): 60 degrees over the forehead, 115 at the nape, in between on the sides."""
-    return np.radians(60.0 + 55.0 * 0.5 * (1.0 - np.cos(azimuth)))
+    face, +x): 45 degrees over the forehead, 115 at the nape, in between on the sides."""
+    return np.radians(45.0 + 70.0 * 0.5 * (1.0 - np.cos(azimuth)))
 
 
 def scalp_sites(n: int, seed: int = 0) -> np.ndarray:
@@ -234,7 +234,7 @@ def build(hair: Hair = Hair(), dt: float = 1e-2, strand_contact: bool = False, f
     rng = np.random.default_rng(hair.seed + 2)
     for k, x in enumerate(strands(hair, centre, float(spec.geom(SKULL).size[0]))):
         shade = rng.uniform(0.75, 1.25)
-        rgba = (min(1.0, 0.36 * shade), min(1.0, 0.22 * shade), min(1.0, 0.12 * shade), 1.0)
+        rgba = (min(1.0, 0.27 * shade), min(1.0, 0.16 * shade), min(1.0, 0.08 * shade), 1.0)
         world.add_rod(Rod(x, mat), f"hair{k}", start="clamp", start_body=HEAD, rgba=rgba)
     return world
 

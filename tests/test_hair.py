@@ -144,3 +144,20 @@ def test_derods_hair_refuses_bad_input(tmp_path, capsys):
     assert main(["hair", "--strands", "0", "--out", str(tmp_path / "h.mp4"), "--quiet"]) == 2
     assert "strands must be an integer >= 1" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_report_has_a_hair_section(tmp_path):
+    """Hair records in a results file (as benchmarks/bench_hair.py --append-to writes them)
+    become the report's hair table, an unstable one with its note."""
+    import json
+
+    from derods.bench import hair as hair_bench
+    from derods.bench import report
+
+    rec = hair_bench.run(hair_bench.HairCase(strands=4, vertices=8, seconds=0.1))
+    bad = dict(rec, backend="flex", stable=False, note="diverged at step 3")
+    results = tmp_path / "r.jsonl"
+    results.write_text(json.dumps(rec) + "\n" + json.dumps(bad) + "\n")
+    text = report.report(results, tmp_path / "report").read_text()
+    assert "## hair" in text
+    assert "| der | 4 |" in text and "| flex | 4 |" in text and "UNSTABLE" in text and "diverged at step 3" in text

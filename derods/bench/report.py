@@ -109,7 +109,8 @@ def report(results, out_dir, command: str = "") -> pathlib.Path:
             lines += ["", "Unstable or failed runs: " + "; ".join(
                 f"{r['backend']}/{r.get('mode')} n={r['n_edges']} dt={r['dt']:g}" for r in bad)]
         lines.append("")
-    lines += _drop_section(records) + _targets(records) + _stability_section(records) + _extreme_section(records)
+    lines += _drop_section(records) + _hair_section(records) + _targets(records) + _stability_section(records)
+    lines += _extreme_section(records)
     path = out_dir / "report.md"
     tmp = path.with_suffix(".md.tmp")
     tmp.write_text("\n".join(lines) + "\n")
@@ -180,6 +181,27 @@ def _drop_section(records) -> list[str]:
         rest = f"{r['rest_time']:.2f}" if r.get("at_rest") else "not at rest"
         out.append(f"| {r['backend']} | {r['n_edges']} | {r['dt']:g} | {r['scene']} | {r['tilt']:g} | {rest} | "
                    f"{1000 * r['measured']:.2f} / {1000 * r['impact_penetration']:.1f} | {r['us_per_step']:.0f} |")
+    return out + [""]
+
+
+def _hair_section(records) -> list[str]:
+    hair = [r for r in records if r["case"] == "hair"]
+    if not hair:
+        return []
+    out = ["## hair", "", "R curled strands x 32 vertices clamped on a shaking mocap head (`derods bench hair`, "
+           "`benchmarks/bench_hair.py`), dt = 1e-2 s; penetration into the skull after the impact transients "
+           "(from 0.5 s after the head starts to move) and over the whole run, the largest edge strain, and how "
+           "far a root left its scalp site.", "",
+           "| backend | strands | build [s] | ms/step (median) | penetration after / all [mm] | max strain | "
+           "root drift [m] | note |", "|---|---|---|---|---|---|---|---|"]
+    for r in sorted(hair, key=lambda r: (r["strands"], r["backend"])):
+        head = f"| {r['backend']} | {r['strands']} | {r['build_s']:.2f} |"
+        if not r.get("stable"):
+            out.append(f"{head} UNSTABLE | | | | {r.get('note', '')[:120]} |")
+            continue
+        out.append(f"{head} {r['median_us_per_step'] / 1e3:.1f} | {1e3 * r['penetration']:.2f} / "
+                   f"{1e3 * r['penetration_max']:.2f} | {r['max_strain']:.1e} | {r['root_drift']:.1e} | "
+                   f"{r.get('note', '')[:120]} |")
     return out + [""]
 
 
