@@ -67,11 +67,8 @@ def project_rod(x, inv_mass, rest_len, tol, max_iter):
 
 
 @nb.njit(cache=True)
-def projection_step(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, tol, max_iter, xp, accel):
-    """The projection mode's acceleration [m/s^2] (n,) of every free dof: predict
-    x + h (v + h a0) for the free vertices, project each rod, and take the acceleration
-    that lands there. x, xp (n_vertices, 3): positions now and (scratch) projected.
-    Returns the first rod that did not converge, or -1."""
+def predict_into(x, place, v, a0, h, xp):
+    """xp (n_vertices, 3) <- x + h (v + h a0) for the free vertices (place >= 0), x elsewhere."""
     xp[:] = x
     for vtx in range(x.shape[0]):
         p = place[vtx]
@@ -79,16 +76,32 @@ def projection_step(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, tol, m
             for a in range(3):
                 k = 3 * p + a
                 xp[vtx, a] += h * (v[k] + h * a0[k])
-    for i in range(len(v_off) - 1):
-        v0, v1 = v_off[i], v_off[i + 1]
-        if project_rod(xp[v0:v1], inv_mass[v0:v1], rest_len[e_off[i]:e_off[i + 1]], tol, max_iter) < 0:
-            return i
-    for vtx in range(x.shape[0]):
+
+
+@nb.njit(cache=True)
+def landing_into(x, xp, place, v, h, lo, hi, accel):
+    """accel (n,) [m/s^2] of the free dofs of vertices lo..hi-1 that take them from x with
+    velocity v to xp in one step h."""
+    for vtx in range(lo, hi):
         p = place[vtx]
         if p >= 0:
             for a in range(3):
                 k = 3 * p + a
                 accel[k] = ((xp[vtx, a] - x[vtx, a]) / h - v[k]) / h
+
+
+@nb.njit(cache=True)
+def projection_step(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, tol, max_iter, xp, accel):
+    """The projection mode's acceleration [m/s^2] (n,) of every free dof: predict
+    x + h (v + h a0) for the free vertices, project each rod, and take the acceleration
+    that lands there. x, xp (n_vertices, 3): positions now and (scratch) projected.
+    Returns the first rod that did not converge, or -1."""
+    predict_into(x, place, v, a0, h, xp)
+    for i in range(len(v_off) - 1):
+        v0, v1 = v_off[i], v_off[i + 1]
+        if project_rod(xp[v0:v1], inv_mass[v0:v1], rest_len[e_off[i]:e_off[i + 1]], tol, max_iter) < 0:
+            return i
+    landing_into(x, xp, place, v, h, 0, x.shape[0], accel)
     return -1
 
 
@@ -102,13 +115,7 @@ def limit_strain(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, 
     the constraint set is near) keeps its a0: the limit is a best effort, not a
     constraint. x, xp (n_vertices, 3): positions now and (scratch) predicted. Returns
     (rods projected, rods left as they were)."""
-    xp[:] = x
-    for vtx in range(x.shape[0]):
-        p = place[vtx]
-        if p >= 0:
-            for a in range(3):
-                k = 3 * p + a
-                xp[vtx, a] += h * (v[k] + h * a0[k])
+    predict_into(x, place, v, a0, h, xp)
     n_projected, n_left = 0, 0
     for i in range(len(v_off) - 1):
         if not limited[i]:
@@ -127,10 +134,5 @@ def limit_strain(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, 
             n_left += 1
             continue
         n_projected += 1
-        for vtx in range(v0, v1):
-            p = place[vtx]
-            if p >= 0:
-                for a in range(3):
-                    k = 3 * p + a
-                    a0[k] = ((xp[vtx, a] - x[vtx, a]) / h - v[k]) / h
+        landing_into(x, xp, place, v, h, v0, v1, a0)
     return n_projected, n_left

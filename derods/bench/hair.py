@@ -7,7 +7,8 @@ first forward pass); ``us_per_step`` [us] (mean over the run) and ``median_us_pe
 ``stable``; ``penetration`` [m], the deepest any strand went into the skull after the
 impact transients (from half a second after the head starts moving), and
 ``penetration_max`` [m] over the whole run; ``max_strain`` over the run; ``root_drift``
-[m] at the end.
+[m] at the end; ``inertia_warnings``, how often MuJoCo found its inertia (for a
+flexcomp, M + K) singular or its solve not converged.
 """
 
 from __future__ import annotations
@@ -165,6 +166,7 @@ def run(case: HairCase, progress=None) -> dict:
         drift = float(np.linalg.norm(sim.positions()[:, 0] - want, axis=1).max())
     mat = h.material
     wall = float(np.sum(times))
+    inertia = int(sim.data.warning[mujoco.mjtWarning.mjWARN_INERTIA].number)
     return {
         "case": "hair", "backend": case.backend, "mujoco_version": mujoco.__version__,
         "strands": case.strands, "vertices": case.vertices, "n_edges": case.vertices - 1, "dt": case.dt,
@@ -174,7 +176,9 @@ def run(case: HairCase, progress=None) -> dict:
         "us_per_step": 1e6 * wall / len(times) if times else None,
         "median_us_per_step": 1e6 * float(np.median(times)) if times else None,
         "stable": stable, "penetration": pen_late, "penetration_max": pen_max, "max_strain": strain,
-        "root_drift": drift, "note": note or NOTES[case.backend],
+        "root_drift": drift, "inertia_warnings": inertia,
+        "note": note or (NOTES[case.backend] + (f"; MuJoCo reported a singular inertia (its M + K solve not "
+                                                 f"converged) {inertia} times" if inertia else "")),
     }
 
 
