@@ -117,6 +117,8 @@ def test_bench_hair_refuses_bad_input():
         hair_bench.HairCase(backend="cable")
     with pytest.raises(ValueError, match="dt must be finite and > 0"):
         hair_bench.HairCase(dt=0.0)
+    with pytest.raises(ValueError, match="strand_contact is derods' option"):
+        hair_bench.HairCase(backend="flex", strand_contact=True)
 
 
 def test_derods_hair_writes_a_video_and_a_still(tmp_path, capsys):

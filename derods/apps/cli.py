@@ -214,10 +214,13 @@ def bench(args: argparse.Namespace) -> int:
 
         given = {k: getattr(args, k) for k in ("strands", "vertices", "dt", "motion", "seconds", "backend")
                  if getattr(args, k) is not None}
+        given["strand_contact"] = args.strand_contact
         return hair_bench.main(hair_bench.HairCase(**given), args.json)
     for name in ("strands", "vertices", "motion", "seconds"):
         if getattr(args, name) is not None:
             raise ValueError(f"--{name} is an option of the hair case only")
+    if args.strand_contact:
+        raise ValueError("--strand-contact is an option of the hair case only")
     return bench_mod.main(args.case, bench_mod.params_from_args(args), args.json)
 
 
@@ -346,6 +349,7 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--motion", choices=["shake", "nod", "turn", "still"], default=None,
                    help="hair: head motion (default shake)")
     b.add_argument("--seconds", type=float, default=None, help="hair: simulated time [s] (default 1.5)")
+    b.add_argument("--strand-contact", action="store_true", help="hair: strands touch one another (default off)")
     b.add_argument("--json", action="store_true", help="print one JSON object per line")
     b.set_defaults(func=bench)
     args = parser.parse_args(argv)

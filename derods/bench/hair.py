@@ -41,7 +41,8 @@ TRANSIENT = 0.5
 class HairCase:
     """strands, vertices: the hair (the rest of :class:`derods.hair.Hair` at its
     defaults); dt [s]; motion: head motion; seconds [s] simulated; backend: "der" or
-    "flex" (MuJoCo's 1D flexcomp, one per strand, pinned to the head)."""
+    "flex" (MuJoCo's 1D flexcomp, one per strand, pinned to the head); strand_contact:
+    strands touch one another too (derods only)."""
 
     strands: int = 1000
     vertices: int = 32
@@ -49,6 +50,7 @@ class HairCase:
     motion: str = "shake"
     seconds: float = 1.5
     backend: str = "der"
+    strand_contact: bool = False
 
     def __post_init__(self):
         if self.backend not in HAIR_BACKENDS:
@@ -59,6 +61,8 @@ class HairCase:
             raise ValueError(f"seconds must be finite and > 0 [s], got {self.seconds!r}")
         hair_mod.Motion(self.motion)
         self.hair  # checks strands and vertices
+        if self.strand_contact and self.backend != "der":
+            raise ValueError("strand_contact is derods' option (the flexcomp hair has none)")
 
     @property
     def hair(self) -> hair_mod.Hair:
@@ -69,7 +73,7 @@ class _DerHair:
     """derods' hair behind the few calls the run needs."""
 
     def __init__(self, case: HairCase):
-        self.world = hair_mod.build(case.hair, dt=case.dt)
+        self.world = hair_mod.build(case.hair, dt=case.dt, strand_contact=case.strand_contact)
         self.world.compile()
         self.model, self.data = self.world.model, self.world.data
         self.drive = hair_mod.drive(self.world, hair_mod.Motion(case.motion))
@@ -171,6 +175,7 @@ def run(case: HairCase, progress=None) -> dict:
         "case": "hair", "backend": case.backend, "mujoco_version": mujoco.__version__,
         "strands": case.strands, "vertices": case.vertices, "n_edges": case.vertices - 1, "dt": case.dt,
         "mode": "implicit" if case.backend == "der" else "native", "motion": case.motion,
+        "strand_contact": case.strand_contact,
         "young": mat.young, "length": h.length, "radius": mat.radius, "density": mat.density,
         "build_s": build_s, "steps": len(times), "sim_s": len(times) * case.dt, "wall_s": wall,
         "us_per_step": 1e6 * wall / len(times) if times else None,
@@ -184,7 +189,8 @@ def run(case: HairCase, progress=None) -> dict:
 
 def format_record(rec: dict) -> str:
     """One readable line for a hair record."""
-    head = (f"hair {rec['backend']}: {rec['strands']} strands x {rec['vertices']} vertices, {rec['motion']}, "
+    head = (f"hair {rec['backend']}: {rec['strands']} strands x {rec['vertices']} vertices, {rec['motion']}"
+            f"{', strand contact' if rec.get('strand_contact') else ''}, "
             f"dt={rec['dt']:g} | build {rec['build_s']:.2f} s")
     if not rec["stable"]:
         return f"{head} | UNSTABLE: {rec['note']}"

@@ -86,6 +86,10 @@ ARENA_GUESS_UP_TO = 3000
 ARENA_BASE, ARENA_PER_DOF = 64 << 20, 4 << 10
 
 
+#: The world axes of a vertex body's three slide joints.
+AXES = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0])
+
+
 def arena_budget(n_dofs: int, n_bodies_flexes: int) -> int:
     """MuJoCo arena [bytes] for a world of ``n_dofs`` dofs and that many bodies plus flexes."""
     return ARENA_BASE + ARENA_PER_DOF * n_dofs + 2 * n_bodies_flexes ** 2
@@ -130,32 +134,36 @@ def add_to_spec(spec: mujoco.MjSpec, entries: list[RodEntry], contact, collide: 
             if e.holder(key):
                 p, rmat = poses[e.holder(key)]
                 for i in e.held(key):
-                    _vertex_body(spec.body(e.holder(key)), e, int(i), rmat.T @ (e.x0[i] - p), joints=False)
-    chunk, size = None, 0
+                    _vertex_body(spec.body(e.holder(key)), e, int(i), rmat.T @ (e.x0[i] - p), joints=False,
+                                 mass=float(e.rod.vertex_mass[i]))
+    chunks, size = [], CHUNK_VERTICES
     for e in entries:
-        if chunk is None:
-            chunk, size = mujoco.MjSpec(), 0
-        _add_rod_bodies(chunk.worldbody, e)
-        size += e.rod.n_vertices
         if size >= CHUNK_VERTICES:
-            _attach(spec, chunk)
-            chunk = None
-            if bar is not None:
-                bar.update(size)
-    if chunk is not None:
-        _attach(spec, chunk)
+            chunks.append(mujoco.MjSpec())
+            size = 0
+        _add_rod_bodies(chunks[-1].worldbody, e)
+        size += e.rod.n_vertices
         if bar is not None:
-            bar.update(size)
+            bar.update(e.rod.n_vertices)
+    # Merged pairwise (each attach costs time linear in the spec attached to), then
+    # attached to the scene once: N log N in all, where attaching chunk by chunk to the
+    # scene costs N^2 / CHUNK_VERTICES.
+    while len(chunks) > 1:
+        for k in range(0, len(chunks) - 1, 2):
+            _attach(chunks[k], chunks[k + 1])
+        chunks = chunks[::2]
+    if chunks:
+        _attach(spec, chunks[0])
     for e in entries:
         _add_flex(spec, e, contact, collide)
     if bar is not None:
         bar.close()
 
 
-def _vertex_body(parent, e: RodEntry, i: int, pos, joints: bool):
-    """Vertex i of rod e as a body under ``parent`` at ``pos`` (in the parent's frame)."""
+def _vertex_body(parent, e: RodEntry, i: int, pos, joints: bool, mass: float):
+    """Vertex i of rod e, of ``mass`` [kg], as a body under ``parent`` at ``pos`` (in the
+    parent's frame)."""
     rod = e.rod
-    mass = float(rod.vertex_mass[i])
     body = parent.add_body(name=f"{e.name}_{i}", pos=pos)
     body.mass = mass
     # Vertex bodies only slide: their rotational inertia never acts, but MuJoCo refuses
@@ -166,7 +174,7 @@ def _vertex_body(parent, e: RodEntry, i: int, pos, joints: bool):
     body.iquat = [1.0, 0.0, 0.0, 0.0]
     body.explicitinertial = True
     if joints:
-        for axis in np.eye(3):
+        for axis in AXES:
             body.add_joint(type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis)
     return body
 
@@ -176,9 +184,10 @@ def _add_rod_bodies(worldbody, e: RodEntry) -> None:
     root = worldbody.add_body(name=e.name)
     riding = {int(i) for key in ("start", "end") if e.holder(key) for i in e.held(key)}
     fixed = e.fixed
+    mass = e.rod.vertex_mass.tolist()  # a property that computes them all
     for i, xi in enumerate(e.x0):
         if i not in riding:
-            _vertex_body(root, e, i, xi, joints=not fixed[i])
+            _vertex_body(root, e, i, xi, joints=not fixed[i], mass=mass[i])
 
 
 def _attach(spec: mujoco.MjSpec, chunk: mujoco.MjSpec) -> None:
