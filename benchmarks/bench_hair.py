@@ -43,6 +43,8 @@ def main() -> int:
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--seconds", type=float, default=1.0)
     ap.add_argument("--flex-up-to", type=int, default=300)
+    ap.add_argument("--flex-budget", type=float, default=240.0,
+                    help="wall time [s] after which a flexcomp run stops stepping (default 240)")
     ap.add_argument("--json", default=None, help="also write the records here (JSON lines)")
     ap.add_argument("--append-to", default=None,
                     help="append each record to this results file as it is made (the report's: "
@@ -66,7 +68,9 @@ def main() -> int:
             for backend in ("der", "flex"):
                 if (backend == "flex" and r > args.flex_up_to) or (backend, r) in done:
                     continue
-                rec = hair_bench.run(hair_bench.HairCase(strands=r, seconds=args.seconds, backend=backend))
+                budget = args.flex_budget if backend == "flex" else None
+                rec = hair_bench.run(hair_bench.HairCase(strands=r, seconds=args.seconds, backend=backend,
+                                                         max_wall_s=budget))
                 rec["repeat"] = rep
                 records.append(rec)
                 print(hair_bench.format_record(rec), flush=True)

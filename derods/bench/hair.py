@@ -42,7 +42,8 @@ class HairCase:
     """strands, vertices: the hair (the rest of :class:`derods.hair.Hair` at its
     defaults); dt [s]; motion: head motion; seconds [s] simulated; backend: "der" or
     "flex" (MuJoCo's 1D flexcomp, one per strand, pinned to the head); strand_contact:
-    strands touch one another too (derods only)."""
+    strands touch one another too (derods only); max_wall_s: stop stepping once the steps
+    took this long [s] (the record then says so, and covers the steps made)."""
 
     strands: int = 1000
     vertices: int = 32
@@ -51,6 +52,7 @@ class HairCase:
     seconds: float = 1.5
     backend: str = "der"
     strand_contact: bool = False
+    max_wall_s: float | None = None
 
     def __post_init__(self):
         if self.backend not in HAIR_BACKENDS:
@@ -146,9 +148,13 @@ def run(case: HairCase, progress=None) -> dict:
     n_steps = int(round(case.seconds / case.dt))
     late_from = hair_mod.Motion(case.motion).settle + TRANSIENT
     times, pen_late, pen_max, strain = [], 0.0, 0.0, 0.0
-    stable, note = True, ""
+    stable, note, budget = True, "", ""
     try:
         for k in range(n_steps):
+            if case.max_wall_s is not None and sum(times) > case.max_wall_s:
+                budget = (f"stopped after {k} of {n_steps} steps ({k * case.dt:g} s simulated): the steps had "
+                          f"taken {sum(times):.0f} s, over the {case.max_wall_s:g} s budget")
+                break
             a = time.perf_counter()
             sim.step()
             times.append(time.perf_counter() - a)
@@ -182,8 +188,9 @@ def run(case: HairCase, progress=None) -> dict:
         "median_us_per_step": 1e6 * float(np.median(times)) if times else None,
         "stable": stable, "penetration": pen_late, "penetration_max": pen_max, "max_strain": strain,
         "root_drift": drift, "inertia_warnings": inertia,
-        "note": note or (NOTES[case.backend] + (f"; MuJoCo reported a singular inertia (its M + K solve not "
-                                                 f"converged) {inertia} times" if inertia else "")),
+        "note": note or "; ".join(t for t in (budget, NOTES[case.backend], (
+            f"MuJoCo reported a singular inertia (its M + K solve not converged) {inertia} times" if inertia
+            else "")) if t),
     }
 
 
