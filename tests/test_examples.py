@@ -17,6 +17,7 @@ EXAMPLES = {
     "michell": ["michell.png"],
     "motor_coil": ["motor_coil.mp4"],
     "knot": ["knot.mp4"],
+    "hair_turn": ["hair_turn.mp4"],
 }
 
 
