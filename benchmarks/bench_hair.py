@@ -85,15 +85,17 @@ def main() -> int:
         os.replace(tmp, args.json)
 
     def med(backend, r, key):
-        vals = [x[key] for x in records if x["backend"] == backend and x["strands"] == r and x["stable"]]
+        vals = [x.get(key, np.nan) for x in records if x["backend"] == backend and x["strands"] == r and x["stable"]]
         return float(np.median(vals)) if vals else float("nan")
 
-    print(f"\n{'R':>6} | {'der build s':>11} | {'der ms/step':>11} | {'steps/s':>7} | {'flex build s':>12} | "
-          f"{'flex ms/step':>12} | {'flex / der step':>15}")
+    print(f"\n{'R':>6} | {'der build s':>11} | {'of it MuJoCo':>12} | {'der ms/step':>11} | {'steps/s':>7} | "
+          f"{'flex build s':>12} | {'flex ms/step':>12} | {'flex / der step':>15}")
     for r in sizes:
-        db, ds = med("der", r, "build_s"), med("der", r, "median_us_per_step") / 1e3
+        db, dm = med("der", r, "build_s"), med("der", r, "mujoco_compile_s")
+        ds = med("der", r, "median_us_per_step") / 1e3
         fb, fs = med("flex", r, "build_s"), med("flex", r, "median_us_per_step") / 1e3
-        print(f"{r:>6} | {db:>11.2f} | {ds:>11.1f} | {1e3 / ds:>7.1f} | {fb:>12.2f} | {fs:>12.1f} | {fs / ds:>15.2f}")
+        print(f"{r:>6} | {db:>11.2f} | {dm:>12.2f} | {ds:>11.1f} | {1e3 / ds:>7.1f} | {fb:>12.2f} | {fs:>12.1f} | "
+              f"{fs / ds:>15.2f}")
     for label, keep in (("R >= 100", [r for r in sizes if r >= 100]), ("all R", sizes)):
         for backend in ("der", "flex"):
             rs = [r for r in keep if not np.isnan(med(backend, r, "build_s"))]
@@ -101,7 +103,10 @@ def main() -> int:
                 continue
             pb = fit(rs, [med(backend, r, "build_s") for r in rs])
             ps = fit(rs, [med(backend, r, "median_us_per_step") for r in rs])
-            print(f"exponent in R ({label}, {backend}, R = {rs[0]}..{rs[-1]}): build {pb:.2f}, step {ps:.2f}")
+            own = fit(rs, [med(backend, r, "build_s") - med(backend, r, "mujoco_compile_s") for r in rs])
+            mj = fit(rs, [med(backend, r, "mujoco_compile_s") for r in rs])
+            print(f"exponent in R ({label}, {backend}, R = {rs[0]}..{rs[-1]}): build {pb:.2f} (without MuJoCo's "
+                  f"compile {own:.2f}, MuJoCo's compile {mj:.2f}), step {ps:.2f}")
     return 0
 
 

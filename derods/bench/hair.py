@@ -3,7 +3,7 @@ flexcomps, timed and judged the same way (``derods bench hair``).
 
 A record holds, besides the rod parameters the other cases record: ``strands``,
 ``vertices``, ``motion``; ``build_s`` [s] (scene and strands to a compiled model and its
-first forward pass); ``us_per_step`` [us] (mean over the run) and ``median_us_per_step``;
+first forward pass) and ``mujoco_compile_s`` [s], the part of it in MuJoCo's compile; ``us_per_step`` [us] (mean over the run) and ``median_us_per_step``;
 ``stable``; ``penetration`` [m], the deepest any strand went into the skull after the
 impact transients (from half a second after the head starts moving), and
 ``penetration_max`` [m] over the whole run; ``max_strain`` over the run; ``root_drift``
@@ -78,6 +78,7 @@ class _DerHair:
         self.world = hair_mod.build(case.hair, dt=case.dt, strand_contact=case.strand_contact)
         self.world.compile()
         self.model, self.data = self.world.model, self.world.data
+        self.mujoco_compile_s = self.world.compile_times["mujoco_compile"]
         self.drive = hair_mod.drive(self.world, hair_mod.Motion(case.motion))
 
     def step(self):
@@ -107,7 +108,9 @@ class _FlexHair:
             child = native.flex_spec(x - centre, mat.radius, mass, mat.young, nu, pinned=(0, 1), dt=case.dt,
                                      gravity=spec.option.gravity, holder="strand")
             spec.attach(child, frame=head.add_frame(), prefix=f"h{k}_")
+        t0 = time.perf_counter()
         self.model = spec.compile()
+        self.mujoco_compile_s = time.perf_counter() - t0
         m = self.model
         for b in range(m.nbody):
             if m.body_dofnum[b] == 3 and m.jnt_type[m.body_jntadr[b]] == mujoco.mjtJoint.mjJNT_SLIDE:
@@ -183,7 +186,7 @@ def run(case: HairCase, progress=None) -> dict:
         "mode": "implicit" if case.backend == "der" else "native", "motion": case.motion,
         "strand_contact": case.strand_contact,
         "young": mat.young, "length": h.length, "radius": mat.radius, "density": mat.density,
-        "build_s": build_s, "steps": len(times), "sim_s": len(times) * case.dt, "wall_s": wall,
+        "build_s": build_s, "mujoco_compile_s": sim.mujoco_compile_s, "steps": len(times), "sim_s": len(times) * case.dt, "wall_s": wall,
         "us_per_step": 1e6 * wall / len(times) if times else None,
         "median_us_per_step": 1e6 * float(np.median(times)) if times else None,
         "stable": stable, "penetration": pen_late, "penetration_max": pen_max, "max_strain": strain,

@@ -192,10 +192,10 @@ def _hair_section(records) -> list[str]:
            "`benchmarks/bench_hair.py`), dt = 1e-2 s; penetration into the skull after the impact transients "
            "(from 0.5 s after the head starts to move) and over the whole run, the largest edge strain, and how "
            "far a root left its scalp site.", "",
-           "| backend | strands | build [s] | ms/step (median) | penetration after / all [mm] | max strain | "
-           "root drift [m] | note |", "|---|---|---|---|---|---|---|---|"]
+           "| backend | strands | build (of it MuJoCo's compile) [s] | ms/step (median) | penetration after / all "
+           "[mm] | max strain | root drift [m] | note |", "|---|---|---|---|---|---|---|---|"]
     for r in sorted(hair, key=lambda r: (r["strands"], r["backend"])):
-        head = f"| {r['backend']} | {r['strands']} | {r['build_s']:.2f} |"
+        head = f"| {r['backend']} | {r['strands']} | {r['build_s']:.2f} ({r.get('mujoco_compile_s', math.nan):.2f}) |"
         if not r.get("stable"):
             out.append(f"{head} UNSTABLE | | | | {r.get('note', '')[:120]} |")
             continue
