@@ -24,6 +24,7 @@ import numpy as np
 
 from .. import hair as hair_mod
 from .. import scenes
+from ..sim import layout
 from ..sim.divergence import DivergenceError
 from . import native
 
@@ -108,6 +109,11 @@ class _FlexHair:
             child = native.flex_spec(x - centre, mat.radius, mass, mat.young, nu, pinned=(0, 1), dt=case.dt,
                                      gravity=spec.option.gravity, holder="strand")
             spec.attach(child, frame=head.add_frame(), prefix=f"h{k}_")
+        # MuJoCo's arena guess for this model grows as nv^2 (25 GB at 300 strands: the
+        # allocation fails); the budget derods gives its own large worlds, doubled for the
+        # flex solver's M + K.
+        n = case.strands * case.vertices
+        spec.memory = 2 * layout.arena_budget(4 * n, 2 * n + case.strands + 64)
         t0 = time.perf_counter()
         self.model = spec.compile()
         self.mujoco_compile_s = time.perf_counter() - t0
