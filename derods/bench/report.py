@@ -197,11 +197,11 @@ def _hair_section(records) -> list[str]:
     for r in sorted(hair, key=lambda r: (r["strands"], r["backend"])):
         head = f"| {r['backend']} | {r['strands']} | {r['build_s']:.2f} ({r.get('mujoco_compile_s', math.nan):.2f}) |"
         if not r.get("stable"):
-            out.append(f"{head} UNSTABLE | | | | {r.get('note', '')[:120]} |")
+            out.append(f"{head} UNSTABLE | | | | {r.get('note', '')[:400]} |")
             continue
         out.append(f"{head} {r['median_us_per_step'] / 1e3:.1f} | {1e3 * r['penetration']:.2f} / "
                    f"{1e3 * r['penetration_max']:.2f} | {r['max_strain']:.1e} | {r['root_drift']:.1e} | "
-                   f"{r.get('note', '')[:120]} |")
+                   f"{r.get('note', '')[:400]} |")
     return out + [""]
 
 
