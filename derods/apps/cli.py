@@ -9,7 +9,7 @@ Commands:
   compare sweep benchmark cases over backends and resolutions; write a report.
   demo    build rods from the paper's test cases and print their frames and energies.
   bench   run a benchmark case (cantilever, frequency, drop, michell, circle, twist, stability, extreme,
-          hair) and print records.
+          oscillation, hair) and print records.
 """
 
 from __future__ import annotations
@@ -330,7 +330,7 @@ def main(argv: list[str] | None = None) -> int:
 
     b = sub.add_parser("bench", help="run a benchmark case and print one record per run")
     b.add_argument("case", choices=["cantilever", "frequency", "drop", "michell", "circle", "twist", "stability",
-                                     "extreme", "hair"])
+                                     "extreme", "oscillation", "hair"])
     b.add_argument("--backend", default="der", choices=["der", "flex", "cable"],
                    help="der (default), flex (MuJoCo's 1D flexcomp), cable (MuJoCo 3.x)")
     b.add_argument("--n-edges", type=_positive_int, default=None, help="edges per rod (default 20)")

@@ -7,9 +7,10 @@ MuJoCo's native rods, :mod:`.native`) through one protocol (:mod:`.backends`), s
 
 from .backends import RodSimulator
 from .cases import (BACKEND_CASES, BACKENDS, CASES, RUNNERS, CaseParams, cantilever, circle, drop,
-                    environment, extreme, format_record, frequency, main, michell, params_from_args, ring_buckles,
-                    run, stability, twist, twister_world)
+                    environment, extreme, format_record, frequency, main, michell, oscillation, params_from_args,
+                    ring_buckles, run, stability, swing_amplitudes, twist, twister_world)
 
 __all__ = ["BACKEND_CASES", "BACKENDS", "CASES", "RUNNERS", "CaseParams", "RodSimulator", "cantilever",
            "circle", "drop", "environment", "extreme", "format_record", "frequency", "main", "michell",
-           "params_from_args", "ring_buckles", "run", "stability", "twist", "twister_world"]
+           "oscillation", "params_from_args", "ring_buckles", "run", "stability", "swing_amplitudes", "twist",
+           "twister_world"]

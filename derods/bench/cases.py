@@ -55,14 +55,15 @@ from . import native
 from .backends import BACKENDS as _BACKENDS
 from .backends import RodSimulator
 
-CASES = ("cantilever", "frequency", "drop", "michell", "circle", "twist", "stability", "extreme")
+CASES = ("cantilever", "frequency", "drop", "michell", "circle", "twist", "stability", "extreme", "oscillation")
 BACKENDS = tuple(_BACKENDS)
 #: Cases each backend can run.
 BACKEND_CASES = {"der": ("cantilever", "frequency", "drop", "michell", "circle", "twist", "stability",
-                         "extreme"),
-                 "flex": ("cantilever", "frequency", "drop", "circle", "stability", "extreme")
+                         "extreme", "oscillation"),
+                 "flex": ("cantilever", "frequency", "drop", "circle", "stability", "extreme", "oscillation")
                  + (("michell",) if native.has_flex_twist() else ()),
-                 "cable": ("cantilever", "frequency", "michell", "circle", "drop", "stability", "extreme")}
+                 "cable": ("cantilever", "frequency", "michell", "circle", "drop", "stability", "extreme",
+                           "oscillation")}
 
 #: A dropped rod is at rest when no vertex moves faster than this [m/s].
 REST_SPEED = 1e-3
@@ -213,6 +214,46 @@ def frequency(p: CaseParams, periods: int = 4) -> list[dict]:
         stable, note = False, str(err)
     wall = time.perf_counter() - t0
     return [_record("frequency", p, world, measured, ref, stable, wall, note=note)]
+
+
+def swing_amplitudes(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The indices of the turning points of a sampled swing z (n,) and the peak-to-peak
+    amplitude between each one and the next, shape (turns - 1,)."""
+    inner = np.flatnonzero(((z[1:-1] > z[:-2]) & (z[1:-1] >= z[2:])) | ((z[1:-1] < z[:-2]) & (z[1:-1] <= z[2:])))
+    turns = inner + 1
+    return turns, np.abs(np.diff(z[turns]))
+
+
+def oscillation(p: CaseParams, periods: int = 10) -> list[dict]:
+    """Numerical damping: an undamped cantilever released straight under gravity swings
+    about its sagged shape; measured is the fraction of its amplitude kept per period
+    (1 for an exact integrator), the geometric mean over ``periods`` periods of the
+    peak-to-peak amplitude two turning points apart. Also records the swing's frequency
+    against Euler-Bernoulli's first mode (frequency_error)."""
+    mat = p.material
+    f1 = reference.cantilever_frequency(mat.alpha, mat.line_density, p.length)
+    world, _ = p.build.cantilever(p, p.gravity, 0.0)
+    n_steps = int(math.ceil((periods + 0.5) / f1 / p.dt))
+    z = np.empty(n_steps)
+    t0 = time.perf_counter()
+    stable, measured, freq, note = True, None, None, ""
+    try:
+        for k in range(n_steps):
+            world.step()
+            z[k] = world.positions()[-1, 2]
+        turns, amp = swing_amplitudes(z)
+        if len(amp) >= 3 and amp[0] > 0:
+            # turning points two apart are one period apart
+            measured = float((amp[-1] / amp[0]) ** (2.0 / (len(amp) - 1))) if len(amp) % 2 else \
+                float((amp[-2] / amp[0]) ** (2.0 / (len(amp) - 2)))
+            freq = float(1.0 / (2.0 * np.mean(np.diff(turns)) * p.dt))
+        else:
+            note = f"{len(turns)} turning points in {n_steps} steps: the tip did not swing"
+    except DivergenceError as err:
+        stable, note = False, str(err)
+    wall = time.perf_counter() - t0
+    return [_record("oscillation", p, world, measured, 1.0, stable, wall, frequency=freq, frequency_ref=f1,
+                    frequency_error=None if freq is None else freq / f1 - 1.0, periods=periods, note=note)]
 
 
 def drop(p: CaseParams, sim_time: float = 3.0, mass_damping: float = 2.0) -> list[dict]:
@@ -527,7 +568,8 @@ def _closest_approach(x: np.ndarray, spacing: float, samples: int = 8) -> float:
 
 
 RUNNERS = {"cantilever": cantilever, "frequency": frequency, "drop": drop, "michell": michell,
-           "circle": circle, "twist": twist, "stability": stability, "extreme": extreme}
+           "circle": circle, "twist": twist, "stability": stability, "extreme": extreme,
+           "oscillation": oscillation}
 
 
 def run(case: str, params: CaseParams) -> list[dict]:
