@@ -94,3 +94,14 @@ def test_swing_amplitudes_of_a_decaying_sine():
     turns, amp = bench.swing_amplitudes(z)
     assert len(turns) == 20
     np.testing.assert_allclose(amp[2:] / amp[:-2], math.exp(-0.1), rtol=1e-3)
+
+
+def test_report_has_an_oscillation_section(tmp_path):
+    from derods.bench import report
+
+    rec, = bench.oscillation(bench.CaseParams(young=1e9, dt=1e-2))
+    results = tmp_path / "r.jsonl"
+    results.write_text(json.dumps(rec) + "\n")
+    text = report.report(results, tmp_path / "report").read_text()
+    assert "## oscillation" in text
+    assert f"| der/implicit | 20 | 0.01 | {rec['measured']:.3f} |" in text

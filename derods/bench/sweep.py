@@ -106,6 +106,7 @@ FULL_PLAN = [
     # The cable's O(n^3) step makes a 100-segment ring bisection take minutes at dt = 1e-3.
     (["michell"], ["der", "flex"], [100], [1e-3, 1e-2], _RING),
     (["extreme"], ALL, [50], [2e-3], {}),
+    (["oscillation"], ALL, [20, 50], [1e-3, 3e-3, 1e-2], {"young": 1e9}),
 ]
 STABILITY_E = [1e5, 1e7, 1e9, 1e11]
 STABILITY_DT = [1e-4, 1e-3, 1e-2, 2e-2]
