@@ -18,6 +18,25 @@ from ..geometry import CHI_MIN
 
 
 @nb.njit(cache=True, inline="always")
+def transport(p0, p1, p2, c0, c1, c2, w0, w1, w2):
+    """The parallel transport of w from unit tangent p to unit tangent c, made
+    perpendicular to c and unit (the formula of :func:`derods.frames.parallel_transport`,
+    chi floored at CHI_MIN); returns its three components."""
+    k0, k1, k2 = p1 * c2 - p2 * c1, p2 * c0 - p0 * c2, p0 * c1 - p1 * c0
+    s0, s1, s2 = p0 + c0, p1 + c1, p2 + c2
+    opc = max(0.5 * (s0 * s0 + s1 * s1 + s2 * s2), CHI_MIN)
+    cc = opc - 1.0
+    kw = (k0 * w0 + k1 * w1 + k2 * w2) / opc
+    v0 = cc * w0 + (k1 * w2 - k2 * w1) + k0 * kw
+    v1 = cc * w1 + (k2 * w0 - k0 * w2) + k1 * kw
+    v2 = cc * w2 + (k0 * w1 - k1 * w0) + k2 * kw
+    vt = v0 * c0 + v1 * c1 + v2 * c2
+    v0, v1, v2 = v0 - vt * c0, v1 - vt * c1, v2 - vt * c2
+    nv = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    return v0 / nv, v1 / nv, v2 / nv
+
+
+@nb.njit(cache=True, inline="always")
 def add_block(ab, place, vi, vj, blk):
     """Add the 3 x 3 block blk to H[vertex vi, vertex vj] of a symmetric matrix kept as
     its lower band, the vertices at places p = place[v] of the solve order (nothing for a
@@ -76,19 +95,7 @@ def edges(x, u, t, rest_len, ks, closed, place, grad, ab, le, blocks):
         c0, c1, c2 = e0 / lj, e1 / lj, e2 / lj
         p0, p1, p2 = t[j, 0], t[j, 1], t[j, 2]
         t[j, 0], t[j, 1], t[j, 2] = c0, c1, c2
-        k0, k1, k2 = p1 * c2 - p2 * c1, p2 * c0 - p0 * c2, p0 * c1 - p1 * c0
-        s0, s1, s2 = p0 + c0, p1 + c1, p2 + c2
-        opc = max(0.5 * (s0 * s0 + s1 * s1 + s2 * s2), CHI_MIN)
-        cc = opc - 1.0
-        w0, w1, w2 = u[j, 0], u[j, 1], u[j, 2]
-        kw = (k0 * w0 + k1 * w1 + k2 * w2) / opc
-        v0 = cc * w0 + (k1 * w2 - k2 * w1) + k0 * kw
-        v1 = cc * w1 + (k2 * w0 - k0 * w2) + k1 * kw
-        v2 = cc * w2 + (k0 * w1 - k1 * w0) + k2 * kw
-        vt = v0 * c0 + v1 * c1 + v2 * c2
-        v0, v1, v2 = v0 - vt * c0, v1 - vt * c1, v2 - vt * c2
-        nvv = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
-        u[j, 0], u[j, 1], u[j, 2] = v0 / nvv, v1 / nvv, v2 / nvv
+        u[j, 0], u[j, 1], u[j, 2] = transport(p0, p1, p2, c0, c1, c2, u[j, 0], u[j, 1], u[j, 2])
         strain = lj / rest_len[j] - 1.0
         # NaN compares false: a NaN strain becomes the "largest" so the check sees it.
         if not abs(strain) <= max_strain:
