@@ -268,11 +268,7 @@ def skull_pose(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[np.ndarray, 
     return data.mocap_pos[mocap] + rot @ model.geom_pos[g], rot, float(model.geom_size[g, 0])
 
 
-def _head(world: World) -> tuple[np.ndarray, np.ndarray, float]:
-    return skull_pose(world.model, world.data)
-
-
-def _all_positions(world: World) -> np.ndarray:
+def strand_positions(world: World) -> np.ndarray:
     """Every strand's vertices [m], shape (strands, vertices, 3) (strands are of one size)."""
     return world.all_positions().reshape(len(world.rods), -1, 3)
 
@@ -290,22 +286,29 @@ def sphere_penetration(x: np.ndarray, centre: np.ndarray, sphere_radius: float, 
 def penetration(world: World) -> float:
     """Deepest penetration [m] of any strand (a capsule of its radius along each edge)
     into the skull, now; 0 if none touches it."""
-    c, _, skull = _head(world)
-    return sphere_penetration(_all_positions(world), c, skull, world.rods[0].material.radius)
+    c, _, skull = skull_pose(world.model, world.data)
+    return sphere_penetration(strand_positions(world), c, skull, world.rods[0].material.radius)
+
+
+def root_offset(roots: np.ndarray, hair: Hair, centre: np.ndarray, rot: np.ndarray, skull_radius: float) -> float:
+    """Largest distance [m] of roots (strands, 3) [m] from their scalp sites on a skull of
+    ``skull_radius`` [m] at ``centre`` [m] turned by ``rot`` (3, 3)."""
+    want = centre + (skull_radius + ROOT_LIFT * hair.radius) * scalp_sites(hair.strands, hair.seed) @ rot.T
+    return float(np.linalg.norm(roots - want, axis=1).max())
+
+
+def edge_strain(x: np.ndarray, rest) -> float:
+    """Largest |edge length / rest length - 1| of strands x (strands, vertices, 3) [m];
+    rest [m]: one length, or (strands, vertices - 1)."""
+    return float(np.abs(np.linalg.norm(np.diff(x, axis=1), axis=-1) / rest - 1.0).max())
 
 
 def root_drift(world: World, hair: Hair) -> float:
     """Largest distance [m] of a strand's root vertex from its scalp site (which moves with
     the head), now: clamped roots ride on the head, so this stays at round-off."""
-    c, rot, skull = _head(world)
-    sites = scalp_sites(hair.strands, hair.seed)
-    want = c + (skull + ROOT_LIFT * hair.radius) * sites @ rot.T
-    roots = _all_positions(world)[:, 0]
-    return float(np.linalg.norm(roots - want, axis=1).max())
+    return root_offset(strand_positions(world)[:, 0], hair, *skull_pose(world.model, world.data))
 
 
 def max_strain(world: World) -> float:
     """Largest |edge length / rest length - 1| over every strand, now."""
-    x = _all_positions(world)
-    rest = np.stack([r.rest_len for r in world.rods])
-    return float(np.abs(np.linalg.norm(np.diff(x, axis=1), axis=-1) / rest - 1.0).max())
+    return edge_strain(strand_positions(world), np.stack([r.rest_len for r in world.rods]))

@@ -43,9 +43,9 @@ class HairParams:
 ROOT_DRIFT_MAX = 1e-6
 
 
-def check_hair(world, hair: hair_mod.Hair) -> None:
+def check_hair(world, hair: hair_mod.Hair) -> float:
     """Raise DivergenceError if a root left its scalp site or a strand went a radius deep
-    into the skull (the video would show it)."""
+    into the skull (the video would show it); returns that depth [m]."""
     drift = hair_mod.root_drift(world, hair)
     if drift > ROOT_DRIFT_MAX:
         raise DivergenceError(f"a strand's root left the scalp by {drift:.3g} m at t = {world.time:.3g} s")
@@ -53,6 +53,7 @@ def check_hair(world, hair: hair_mod.Hair) -> None:
     if depth > hair.radius:
         raise DivergenceError(f"a strand went {depth * 1e3:.2f} mm into the skull (more than its radius, "
                               f"{hair.radius * 1e3:g} mm) at t = {world.time:.3g} s; try a smaller dt")
+    return depth
 
 
 def run(p: HairParams, out, progress: bool = True, still=None, quality: str = "auto") -> dict:
@@ -74,8 +75,7 @@ def run(p: HairParams, out, progress: bool = True, still=None, quality: str = "a
     worst = {"penetration": 0.0, "strain": 0.0}
 
     def after_frame(w):
-        check_hair(w, p.hair)
-        worst["penetration"] = max(worst["penetration"], hair_mod.penetration(w))
+        worst["penetration"] = max(worst["penetration"], check_hair(w, p.hair))
         worst["strain"] = max(worst["strain"], hair_mod.max_strain(w))
 
     result = render.film(world, out, p.seconds, p.fps, p.width, p.height, p.camera,

@@ -87,7 +87,7 @@ class _DerHair:
         self.world.step()
 
     def positions(self) -> np.ndarray:
-        return self.world.all_positions().reshape(len(self.world.rods), -1, 3)
+        return hair_mod.strand_positions(self.world)
 
 
 class _FlexHair:
@@ -175,14 +175,12 @@ def run(case: HairCase, progress=None) -> dict:
             pen_max = max(pen_max, pen)
             if (k + 1) * case.dt >= late_from:
                 pen_late = max(pen_late, pen)
-            strain = max(strain, float(np.abs(np.linalg.norm(np.diff(x, axis=1), axis=-1) / rest - 1.0).max()))
+            strain = max(strain, hair_mod.edge_strain(x, rest))
     except DivergenceError as err:
         stable, note = False, str(err)
     drift = None
     if stable:
-        c, rot, skull = hair_mod.skull_pose(sim.model, sim.data)
-        want = c + (skull + hair_mod.ROOT_LIFT * h.radius) * hair_mod.scalp_sites(h.strands, h.seed) @ rot.T
-        drift = float(np.linalg.norm(sim.positions()[:, 0] - want, axis=1).max())
+        drift = hair_mod.root_offset(sim.positions()[:, 0], h, *hair_mod.skull_pose(sim.model, sim.data))
     mat = h.material
     wall = float(np.sum(times))
     inertia = int(sim.data.warning[mujoco.mjtWarning.mjWARN_INERTIA].number)
