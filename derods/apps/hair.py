@@ -3,7 +3,7 @@
 :class:`HairParams` holds what the command line sets; :func:`run` builds the world
 (:func:`derods.hair.build`), drives the head (:class:`derods.hair.Motion`), checks the
 hair while it is filmed (roots on the scalp, strands out of the skull and unstretched)
-and writes the video, the strands drawn as lines (:func:`derods.viz.render.rod_lines`:
+and writes the video, the strands drawn as lines (:func:`derods.viz.overlay.rod_lines`:
 drawing 1000 flexes costs ~5 s a frame on software GL, lines ~0.4 s).
 """
 

@@ -182,7 +182,8 @@ class View:
     camera: a camera name or id of the model, a ``mujoco.MjvCamera``, or None for
     MuJoCo's default free camera. ``n_scenes`` scenes are kept, so that one can be drawn
     while the next is built, each of up to ``max_geom`` geoms. draw_flexes: False leaves
-    the rods' flexes out (their collision capsules; :func:`rod_lines` draws rods cheaply).
+    the rods' flexes out (their collision capsules; :func:`derods.viz.overlay.rod_lines`
+    draws rods cheaply).
     """
 
     def __init__(self, model, camera=None, n_scenes: int = 1, max_geom: int = 10000, draw_flexes: bool = True):
@@ -378,46 +379,6 @@ def frame_plan(seconds: float, fps: float, dt: float) -> np.ndarray:
     return np.diff(at)
 
 
-def rod_lines(world, width: float = 2.0):
-    """A scene callback that draws every rod of ``world`` as lines of ``width`` [pixels],
-    one per edge, in its flex's colour: for many thin rods (hair) about ten times cheaper
-    to draw than MuJoCo's flexes (1000 strands x 31 edges, 960 x 540, software GL: 0.4 s
-    a frame against 5.3 s). Use with a :class:`View` of ``draw_flexes=False`` and room
-    for :func:`n_edges` more geoms."""
-    import mujoco
-
-    model = world.model
-    off = world.vertex_offsets
-    first, second, colour = [], [], []
-    for i, rod in enumerate(world.rods):
-        j = np.arange(rod.n_edges)
-        first.append(off[i] + j)
-        second.append(off[i] + (j + 1) % rod.n_vertices)
-        fid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_FLEX, world.rod_names[i])
-        colour.append(np.repeat(model.flex_rgba[fid][None], rod.n_edges, axis=0))
-    first, second = np.concatenate(first), np.concatenate(second)
-    colour = np.concatenate(colour).astype(np.float32)
-    zero3, eye9 = np.zeros(3), np.eye(3).ravel()
-    line = mujoco.mjtGeom.mjGEOM_LINE
-
-    def paint(scene):
-        x = world.all_positions()
-        n0 = scene.ngeom
-        k_max = min(len(first), scene.maxgeom - n0)
-        for k in range(k_max):
-            g = scene.geoms[n0 + k]
-            mujoco.mjv_initGeom(g, line, zero3, zero3, eye9, colour[k])
-            mujoco.mjv_connector(g, line, width, x[first[k]], x[second[k]])
-        scene.ngeom = n0 + k_max
-
-    return paint
-
-
-def n_edges(world) -> int:
-    """Edges of every rod of ``world`` (the geoms :func:`rod_lines` adds)."""
-    return int(sum(rod.n_edges for rod in world.rods))
-
-
 def film(world, out, seconds: float, fps: float, width: int, height: int, camera=None, paint=None,
          before_step=None, progress: bool = True, label: str = "film", quality: str = "auto", after_frame=None,
          before_close=None, lines: bool = False) -> dict:
@@ -428,8 +389,8 @@ def film(world, out, seconds: float, fps: float, width: int, height: int, camera
     paint: optional scene callback (overlays). before_step: optional ``f(world)`` called
     before every step (to move clamps, set controls). after_frame, before_close: optional
     ``f(world)`` checks after every frame's steps and before the video is kept (raise to
-    discard it). lines: draw the rods as lines (:func:`rod_lines`) instead of their
-    flexes. Physics runs in this thread, drawing and encoding in another. Shows a progress bar. Returns {"frames", "last" (the last
+    discard it). lines: draw the rods as lines (:func:`derods.viz.overlay.rod_lines`)
+    instead of their flexes. Physics runs in this thread, drawing and encoding in another. Shows a progress bar. Returns {"frames", "last" (the last
     image, (height, width, 3) uint8), "quality"}; the video appears only when complete.
     """
     from tqdm import tqdm
@@ -438,6 +399,8 @@ def film(world, out, seconds: float, fps: float, width: int, height: int, camera
     between = frame_plan(seconds, fps, world.model.opt.timestep)
     check_frame_size(world.model, width, height)
     if lines:
+        from .overlay import n_edges, rod_lines
+
         draw_lines = rod_lines(world)
         view = View(world.model, camera, n_scenes=2, max_geom=10000 + n_edges(world), draw_flexes=False)
         paint = draw_lines if paint is None else (lambda scene, first=paint: (draw_lines(scene), first(scene)))
