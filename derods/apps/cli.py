@@ -77,6 +77,17 @@ def demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _before_filming(out, still, params) -> None:
+    """Refuse what can be refused (the output paths; seconds, fps and dt that do not make
+    whole frames) before the compiled kernels are prepared, then prepare them."""
+    from derods.sim import warmup
+    from derods.viz import render
+
+    render.check_outputs(out, still)
+    render.frame_plan(params.seconds, params.fps, params.dt)
+    warmup.prepare()
+
+
 def drop(args: argparse.Namespace) -> int:
     """``derods drop``: see :mod:`derods.apps.drop`."""
     if not args.quiet:
@@ -85,8 +96,7 @@ def drop(args: argparse.Namespace) -> int:
               file=sys.stderr, flush=True)
     import derods
     from derods.apps import drop as drop_mod
-    from derods.sim import warmup
-    from derods.viz import figures, render
+    from derods.viz import figures
 
     mat = derods.Material(young=args.young, radius=args.radius, density=args.density)
     control = None if args.control is None else figures.parse_points(args.control)
@@ -94,10 +104,7 @@ def drop(args: argparse.Namespace) -> int:
         scene=args.scene, rods=args.rods, shape=args.shape, n_edges=args.n_edges, length=args.length,
         seconds=args.seconds, dt=args.dt, fps=args.fps, width=args.width, height=args.height,
         camera=args.camera, material=mat, seed=args.seed, overlay=args.overlay, control=control)
-    # Everything that can be refused is refused before the kernels are prepared.
-    drop_mod.check_outputs(args.out, args.still)
-    render.frame_plan(params.seconds, params.fps, params.dt)
-    warmup.prepare()
+    _before_filming(args.out, args.still, params)
     summary = drop_mod.drop(params, args.out, progress=not args.quiet, still=args.still, quality=args.quality,
                             notes=lambda text: print(f"derods drop: note: {text}", file=sys.stderr))
     print(f"wrote {summary['out']}: {summary['frames']} frames, {summary['sim_s']:.4g} s simulated "
@@ -113,17 +120,12 @@ def hair(args: argparse.Namespace) -> int:
               f"{args.seconds:g} s at dt {args.dt:g} s, filmed at {args.fps:g} frames/s -> {args.out}",
               file=sys.stderr, flush=True)
     from derods import hair as hair_mod
-    from derods.apps import drop as drop_mod
     from derods.apps import hair as app
-    from derods.sim import warmup
-    from derods.viz import render
 
     params = app.HairParams(hair=hair_mod.Hair(strands=args.strands, vertices=args.vertices, seed=args.seed),
                             motion=args.motion, seconds=args.seconds, dt=args.dt, fps=args.fps, width=args.width,
                             height=args.height, strand_contact=args.strand_contact)
-    drop_mod.check_outputs(args.out, args.still)
-    render.frame_plan(params.seconds, params.fps, params.dt)
-    warmup.prepare()
+    _before_filming(args.out, args.still, params)
     s = app.run(params, args.out, progress=not args.quiet, still=args.still, quality=args.quality)
     print(f"wrote {s['out']}: {s['frames']} frames, {s['sim_s']:.4g} s simulated ({s['steps']} steps), "
           f"{s['strands']} strands x {s['vertices']} vertices built in {s['build_s']:.1f} s; deepest strand in "

@@ -278,17 +278,6 @@ def overlay_painter(world: World, kind: str):
     return paint
 
 
-def check_outputs(out, still=None) -> tuple:
-    """The video and still paths, checked before any work: an .mp4 and a .png in writable
-    folders, and not the same file. Raises ValueError with the fix."""
-    out = render.check_output_path(out, render.VIDEO_SUFFIXES, "--out")
-    if still is not None:
-        still = render.check_output_path(still, render.IMAGE_SUFFIXES, "--still")
-        if still.resolve() == out.resolve():
-            raise ValueError(f"--still {str(still)!r} is the video's path; give the still another name")
-    return out, still
-
-
 def drop(p: DropParams, out, progress: bool = True, still=None, quality: str = "auto", notes=None) -> dict:
     """Simulate ``p`` and write an MP4 to ``out``; returns a summary dict.
 
@@ -297,7 +286,7 @@ def drop(p: DropParams, out, progress: bool = True, still=None, quality: str = "
     to a scene for its video, and what looks wrong (a rod starting inside an obstacle).
     The files appear only once complete.
     """
-    out, still = check_outputs(out, still)
+    out, still = render.check_outputs(out, still)
     render.frame_plan(p.seconds, p.fps, p.dt)  # refuse a mismatched time, fps or dt before any work
     world = build_world(p, notes)
     check_step(world)

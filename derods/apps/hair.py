@@ -62,9 +62,7 @@ def run(p: HairParams, out, progress: bool = True, still=None, quality: str = "a
     max_penetration [m], max_strain."""
     import time
 
-    from .drop import check_outputs
-
-    out, still = check_outputs(out, still)
+    out, still = render.check_outputs(out, still)
     render.frame_plan(p.seconds, p.fps, p.dt)
     t0 = time.perf_counter()
     world = hair_mod.build(p.hair, dt=p.dt, strand_contact=p.strand_contact)

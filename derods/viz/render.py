@@ -99,6 +99,17 @@ def check_output_path(out, suffixes: tuple[str, ...] | None = None, what: str = 
     return out
 
 
+def check_outputs(out, still=None) -> tuple:
+    """The video and still paths, checked before any work: an .mp4 and a .png in writable
+    folders, and not the same file. Raises ValueError with the fix."""
+    out = check_output_path(out, VIDEO_SUFFIXES, "--out")
+    if still is not None:
+        still = check_output_path(still, IMAGE_SUFFIXES, "--still")
+        if still.resolve() == out.resolve():
+            raise ValueError(f"--still {str(still)!r} is the video's path; give the still another name")
+    return out, still
+
+
 @contextlib.contextmanager
 def atomic_output(out: pathlib.Path):
     """Yield a temporary path next to ``out``; move it onto ``out`` only on success."""
