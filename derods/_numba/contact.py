@@ -16,6 +16,7 @@ import numpy as np
 from .banded import cholesky_into, inverse_band, solve_columns, solve_into
 from .contact_rows import efc_triplets, exact_line_search, rows_apply, rows_band, rows_diag, rows_transpose_apply
 from .contact_rows import split_rows
+from .contact_blocks import partition
 from .implicit import k_matvec_into, sm_solve_into
 
 
@@ -310,14 +311,6 @@ def delassus_diagonal(lt, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, fptr, fcol
 
 
 @nb.njit(cache=True)
-def _root(parent, i):
-    while parent[i] != i:
-        parent[i] = parent[parent[i]]
-        i = parent[i]
-    return i
-
-
-@nb.njit(cache=True)
 def contact_step(is_sparse, nefc, nv, efc_j, rownnz, rowadr, colind, efc_type, efc_force, efc_aref, efc_r,
                  efc_diag_a, supported_types, local_of_dof, dof_off, width, k_band, a_band, lt, g, tw_lo, tw_hi,
                  tw_c, s, z, den, mass, m_coef, a0, a_out, force_out, max_iter, tol):
@@ -331,89 +324,11 @@ def contact_step(is_sparse, nefc, nv, efc_j, rownnz, rowadr, colind, efc_type, e
     Writes a_out (n,) [m/s^2] and force_out (n,) [N]. Returns 0 if no row touches a
     rod dof (nothing written), 1 otherwise.
     """
-    n = len(a0)
-    n_rods = len(dof_off) - 1
     row, col, val = efc_triplets(is_sparse, nefc, nv, efc_j, rownnz, rowadr, colind)
-    # Rods bound together by rows (union-find over the rods each row touches).
-    parent = np.arange(n_rods)
-    row_rod = np.full(nefc, -1)
-    for p in range(len(row)):
-        loc = local_of_dof[col[p]]
-        if loc < 0:
-            continue
-        rod = np.searchsorted(dof_off, loc, side="right") - 1
-        r = row[p]
-        if row_rod[r] < 0:
-            row_rod[r] = rod
-        else:
-            a, b = _root(parent, row_rod[r]), _root(parent, rod)
-            if a != b:
-                parent[max(a, b)] = min(a, b)
-    touched = np.zeros(n_rods, dtype=np.bool_)
-    for r in range(nefc):
-        if row_rod[r] >= 0:
-            touched[row_rod[r]] = True
-    if not touched.any():
+    n_blocks, idx, start, compact, rows, row_start, row_in_block, nz, nz_start, block_of_rod = partition(
+        row, col, nefc, local_of_dof, dof_off)
+    if n_blocks == 0:
         return 0
-    # Blocks: each root's rods in increasing order, their dofs laid end to end.
-    block_of_root = np.full(n_rods, -1)
-    n_blocks = 0
-    for rod in range(n_rods):
-        if touched[rod]:
-            root = _root(parent, rod)
-            if block_of_root[root] < 0:
-                block_of_root[root] = n_blocks
-                n_blocks += 1
-    for rod in range(n_rods):  # rods joined to a touched rod through one with no row of its own
-        root = _root(parent, rod)
-        touched[rod] = block_of_root[root] >= 0
-    block_of_rod = np.full(n_rods, -1)
-    size = np.zeros(n_blocks + 1, dtype=np.int64)
-    for rod in range(n_rods):
-        if touched[rod]:
-            block_of_rod[rod] = block_of_root[_root(parent, rod)]
-            size[block_of_rod[rod] + 1] += dof_off[rod + 1] - dof_off[rod]
-    start = np.cumsum(size)  # each block's slice of idx
-    idx = np.empty(start[n_blocks], dtype=np.int64)  # local dofs, block by block
-    compact = np.full(n, -1)  # a local dof's place in its block
-    fill = start[:n_blocks].copy()
-    for rod in range(n_rods):
-        if touched[rod]:
-            b = block_of_rod[rod]
-            for j in range(dof_off[rod], dof_off[rod + 1]):
-                compact[j] = fill[b] - start[b]
-                idx[fill[b]] = j
-                fill[b] += 1
-    # Rows and Jacobian entries, block by block (counting sort).
-    block_of_row = np.full(nefc, -1)
-    n_rows = np.zeros(n_blocks + 1, dtype=np.int64)
-    for r in range(nefc):
-        if row_rod[r] >= 0:
-            block_of_row[r] = block_of_rod[row_rod[r]]
-            n_rows[block_of_row[r] + 1] += 1
-    row_start = np.cumsum(n_rows)
-    rows = np.empty(row_start[n_blocks], dtype=np.int64)
-    row_in_block = np.full(nefc, -1)
-    fill = row_start[:n_blocks].copy()
-    for r in range(nefc):
-        b = block_of_row[r]
-        if b >= 0:
-            row_in_block[r] = fill[b] - row_start[b]
-            rows[fill[b]] = r
-            fill[b] += 1
-    n_nz = np.zeros(n_blocks + 1, dtype=np.int64)
-    for p in range(len(row)):
-        b = block_of_row[row[p]]
-        if b >= 0:
-            n_nz[b + 1] += 1
-    nz_start = np.cumsum(n_nz)
-    nz = np.empty(nz_start[n_blocks], dtype=np.int64)
-    fill = nz_start[:n_blocks].copy()
-    for p in range(len(row)):
-        b = block_of_row[row[p]]
-        if b >= 0:
-            nz[fill[b]] = p
-            fill[b] += 1
     supported = np.zeros(nefc, dtype=np.bool_)
     for r in range(nefc):
         for q in range(len(supported_types)):
