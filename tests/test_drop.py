@@ -6,6 +6,7 @@ import os
 import signal
 import subprocess
 import sys
+import logging
 import math
 import time
 
@@ -71,6 +72,17 @@ def test_interrupted_drop_leaves_no_file(tmp_path, monkeypatch):
     out = tmp_path / "drop.mp4"
     assert main(["drop", "--out", str(out)] + SMALL) == 130
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_video_aborted_before_its_first_frame_is_silent(tmp_path, caplog):
+    """A signal can land after the writer opened its file and before the first frame: the
+    abort says nothing of the empty video (it is deleted), and leaves nothing behind."""
+    out = tmp_path / "x.mp4"
+    with pytest.raises(KeyboardInterrupt):
+        with render.VideoWriter(out, (64, 64), 10):
+            raise KeyboardInterrupt
+    assert list(tmp_path.iterdir()) == []
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING], caplog.text
 
 
 @pytest.mark.parametrize("argv,match", [

@@ -21,6 +21,7 @@ onto it only when complete: a crash, Ctrl-C or kill never leaves a partial file.
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 import pathlib
 import queue
@@ -181,9 +182,17 @@ class VideoWriter:
         self.frames += 1
 
     def __exit__(self, *exc):
+        # On an abort (Ctrl-C before the first frame, say) the temporary file is deleted, so
+        # imageio-ffmpeg's warning that the video it closes holds no frame is noise.
+        quiet = exc[0] is not None
+        logger = logging.getLogger("imageio_ffmpeg")
+        level = logger.level
         try:
+            if quiet:
+                logger.setLevel(logging.ERROR)
             self._gen.close()
         finally:
+            logger.setLevel(level)
             return self._atomic.__exit__(*exc)
 
 
