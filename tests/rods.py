@@ -59,11 +59,11 @@ def out_of_plane(x: np.ndarray) -> float:
 
 
 def twisted_ring(mat: derods.Material, n: int, total_twist: float, circumference: float = 1.0,
-                 dt: float = 1e-2) -> World:
+                 dt: float = 1e-2, mode: str = "implicit") -> World:
     """A naturally straight ring with total twist [rad], no gravity, bent out of its plane
     by 1e-3 of its radius (modes 2 and 3)."""
     x = shapes.circle(circumference / (2 * math.pi), n)
-    world = World(dt=dt, gravity=(0.0, 0.0, 0.0))
+    world = World(dt=dt, gravity=(0.0, 0.0, 0.0), mode=mode)
     world.add_rod(derods.Rod(x, mat, closed=True, natural_curvature=False,
                              boundary=derods.TwistBoundary("ring", total_twist=total_twist)), "ring")
     phi = 2 * math.pi * np.arange(n) / n
@@ -73,7 +73,8 @@ def twisted_ring(mat: derods.Material, n: int, total_twist: float, circumference
     return world
 
 
-def twister(mat: derods.Material, n: int = 20, length: float = 1.0, dt: float = 1e-2, servo: bool = True) -> World:
+def twister(mat: derods.Material, n: int = 20, length: float = 1.0, dt: float = 1e-2, servo: bool = True,
+            mode: str = "implicit") -> World:
     """A rod clamped between the world (at x = 0) and a body "turner" on a hinge "turn"
     about x (at x = L), turned by a position servo (kp 2000 N m/rad, kv 100 N m s/rad).
     The body is a disk of polar moment of inertia 0.2 kg m^2: heavy enough that the stiff
@@ -89,7 +90,7 @@ def twister(mat: derods.Material, n: int = 20, length: float = 1.0, dt: float = 
     if servo:
         act = spec.add_actuator(name="servo", target="turn", trntype=mujoco.mjtTrn.mjTRN_JOINT)
         act.set_to_position(kp=2000.0, kv=100.0)
-    world = World(spec, dt=dt, gravity=(0.0, 0.0, 0.0), mass_damping=5.0)
+    world = World(spec, dt=dt, gravity=(0.0, 0.0, 0.0), mass_damping=5.0, mode=mode)
     rod = derods.Rod(shapes.cantilever(length, n, start=(0.0, 0.0, 1.0), clamped_ends=2), mat,
                      boundary=derods.TwistBoundary("clamped", 0.0, 0.0))
     world.add_rod(rod, "rod", start="clamp", end="clamp", end_body="turner")

@@ -103,7 +103,7 @@ def drop(args: argparse.Namespace) -> int:
     params = drop_mod.DropParams(
         scene=args.scene, rods=args.rods, shape=args.shape, n_edges=args.n_edges, length=args.length,
         seconds=args.seconds, dt=args.dt, fps=args.fps, width=args.width, height=args.height,
-        camera=args.camera, material=mat, seed=args.seed, overlay=args.overlay, control=control)
+        camera=args.camera, material=mat, seed=args.seed, overlay=args.overlay, control=control, mode=args.mode)
     _before_filming(args.out, args.still, params)
     summary = drop_mod.drop(params, args.out, progress=not args.quiet, still=args.still, quality=args.quality,
                             notes=lambda text: print(f"derods drop: note: {text}", file=sys.stderr))
@@ -234,6 +234,8 @@ def _picture_args(parser: argparse.ArgumentParser, width: int, height: int, out:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from derods.sim.world import MODES
+
     parser = argparse.ArgumentParser(prog="derods", description="Discrete Elastic Rods on MuJoCo")
     sub = parser.add_subparsers(dest="command", required=True)
     d = sub.add_parser("drop", help="drop rods onto a rigid scene and write an MP4 (headless)")
@@ -257,6 +259,9 @@ def main(argv: list[str] | None = None) -> int:
     d.add_argument("--radius", type=float, default=0.008, help="rod radius [m] (default 0.008)")
     d.add_argument("--density", type=float, default=1100.0, help="density [kg/m^3] (default 1100)")
     d.add_argument("--seed", type=int, default=0, help="seed of the rods' placement (default 0)")
+    d.add_argument("--mode", choices=MODES, default="auto",
+                   help="time stepping: implicit (backward Euler, damps swinging), alpha (generalized-alpha: "
+                        "keeps it), explicit, projection, auto (default: implicit unless dt is tiny)")
     d.add_argument("--overlay", choices=["none", "frames", "bend", "twist"], default="none",
                    help="draw material frames, or colour rods by bending or twisting strain (default none)")
     d.add_argument("--still", default=None, help="also write the last frame to this PNG")
@@ -298,7 +303,8 @@ def main(argv: list[str] | None = None) -> int:
     c.add_argument("--backends", default="der,flex", help="comma-separated backends (der, flex, cable)")
     c.add_argument("--n-edges", default="10,20,50,100", help="comma-separated edge counts")
     c.add_argument("--dt", default="1e-2", help="comma-separated time steps [s]")
-    c.add_argument("--modes", default="implicit", help="derods modes (implicit, explicit, projection)")
+    c.add_argument("--modes", default="implicit", help="comma-separated derods modes (implicit, alpha, explicit, "
+                                                       "projection)")
     c.add_argument("--young", type=float, default=1e8, help="Young's modulus E [Pa] (default 1e8)")
     c.add_argument("--results", default="results.jsonl", help="JSON-lines results file (appended, resumable)")
     c.add_argument("--report-dir", default="report", help="folder for report.md and its plots")
@@ -344,8 +350,8 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--length", type=float, default=None, help="rod length [m] (default 1)")
     b.add_argument("--radius", type=float, default=None, help="rod radius [m] (default 0.01)")
     b.add_argument("--density", type=float, default=None, help="density [kg/m^3] (default 1000)")
-    b.add_argument("--mode", choices=["implicit", "explicit", "projection"], default=None,
-                   help="default implicit")
+    b.add_argument("--mode", choices=[m for m in MODES if m != "auto"], default=None,
+                   help="derods' time stepping (default implicit)")
     b.add_argument("--strands", type=int, default=None, help="hair: number of strands (default 1000)")
     b.add_argument("--vertices", type=_positive_int, default=None, help="hair: vertices per strand (default 32)")
     b.add_argument("--motion", choices=["shake", "nod", "turn", "still"], default=None,

@@ -45,6 +45,7 @@ class DropParams:
     second. width, height: video size [pixels]. camera: camera name (None: the
     scene's "main", else MuJoCo's free camera). material: the rods' material.
     mass_damping: drag rate [1/s]. seed: random seed of the placement.
+    mode: the World's time stepping (:data:`derods.MODES`).
     overlay: "none", "frames" (material frames as arrows: m1 pink, m2 green),
     "bend" (rods coloured by bending strain r kappa, blue straight to red at 5 %)
     or "twist" (coloured by twisting strain r tau, the same scale).
@@ -66,6 +67,7 @@ class DropParams:
     seed: int = 0
     overlay: str = "none"
     control: np.ndarray | None = None
+    mode: str = "auto"
 
     def __post_init__(self):
         if self.overlay not in OVERLAYS:
@@ -120,7 +122,7 @@ def build_world(p: DropParams, notes=None) -> World:
     site = next((s for s in spec.sites if s.name == "drop"), None)
     centre = np.array(site.pos, dtype=float) if site is not None else np.array([0.0, 0.0, 1.0])
     spread = float(site.size[0]) if site is not None else 0.3
-    world = World(spec, dt=p.dt, mass_damping=p.mass_damping, contact=ContactParams(friction=0.8))
+    world = World(spec, dt=p.dt, mode=p.mode, mass_damping=p.mass_damping, contact=ContactParams(friction=0.8))
     rng = np.random.default_rng(p.seed)
     base = rod_shape(p.shape, p.length, p.n_edges, p.control)
     ring = p.shape == "ring"

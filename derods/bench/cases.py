@@ -49,12 +49,15 @@ import numpy as np
 from .. import reference, shapes
 from ..rod import Material, Rod
 from ..sim.divergence import DivergenceError
+from ..sim.world import MODES as _WORLD_MODES
 from ..sim.world import World
 from ..twist import TwistBoundary
 from . import native
 from .backends import BACKENDS as _BACKENDS
 from .backends import RodSimulator
 
+#: The derods modes a case can run in (a World's, without "auto").
+DER_MODES = tuple(m for m in _WORLD_MODES if m != "auto")
 CASES = ("cantilever", "frequency", "drop", "michell", "circle", "twist", "stability", "extreme", "oscillation")
 BACKENDS = tuple(_BACKENDS)
 #: Cases each backend can run.
@@ -80,7 +83,7 @@ class CaseParams:
 
     n_edges: edges of the rod. dt: time step [s]. young: E [Pa]. shear: G [Pa]
     (None: from poisson). length [m], radius [m], density [kg/m^3], gravity
-    [m/s^2] (magnitude, pointing down). mode: "implicit", "explicit" or "projection".
+    [m/s^2] (magnitude, pointing down). mode: one of DER_MODES.
     backend: "der", or MuJoCo's native "flex" or "cable" (:mod:`derods.bench.backends`).
     """
 
@@ -102,8 +105,8 @@ class CaseParams:
         missing = _BACKENDS[self.backend].requirement()
         if missing:
             raise ValueError(missing)
-        if self.mode not in ("implicit", "explicit", "projection"):
-            raise ValueError(f"mode must be 'implicit', 'explicit' or 'projection', got {self.mode!r}")
+        if self.mode not in DER_MODES:
+            raise ValueError(f"mode must be one of {DER_MODES}, got {self.mode!r}")
         if int(self.n_edges) != self.n_edges or self.n_edges < 2:
             raise ValueError(f"n_edges must be an integer >= 2, got {self.n_edges!r}")
         for name, unit in (("dt", "s"), ("length", "m")):

@@ -26,9 +26,11 @@ import mujoco
 import numpy as np
 
 from .._numba import coupling as _io
+from .._numba import generalized_alpha as _ga
 from .._numba import implicit as _imp
-from .._numba.projection import limit_strain, projection_step
+from .._numba.projection import limit_strain, predict_into, projection_step
 from ..step import EndBodies, Frames, RodSet, Terms, evaluate
+from . import generalized_alpha as ga
 from .clamps import Reactions
 from .contact import ContactStep, ReferenceCorrection
 from .divergence import MAX_SPEED, MAX_STRAIN, Diagnosis
@@ -51,6 +53,16 @@ STRAIN_LIMIT = 1e-3
 #: far apart make the projection fail (300 shaken strands kept 4.6 % strain); moved
 #: freely (1), they are pushed back into what they touch.
 TOUCHING_WEIGHT = 1e-2
+#: The alpha mode's Newton iterations per step, at most, and their tolerance [relative to
+#: the shortest edge] on the change of the evaluation point x_{1-af}. Linearized once
+#: (as the implicit mode is), an edge turning by phi per step is stretched by ~phi^2 / 2
+#: and the stiff stretching term turns that into a drag: an undamped cantilever swinging
+#: at w h = 0.18 kept 0.885 of its amplitude per period; iterating removes it.
+NEWTON_ITERATIONS = 4
+NEWTON_TOL = 1e-9
+#: An iteration must shrink the change at least this much, or the step falls back to
+#: backward Euler's (large rotations per step, where the iteration need not converge).
+NEWTON_CONTRACTION = 0.5
 
 
 class Step:
@@ -108,7 +120,11 @@ class Step:
         """Positions, strain check, frames, twist, forces and band of every rod, reactions."""
         if self._moving:
             mujoco.mj_kinematics(self.model, self.data)  # after mj_step, xpos shows the previous state
-        x = self.positions()
+        self.forces(self.positions())
+
+    def forces(self, x: np.ndarray) -> None:
+        """Frames, twist, forces and band of every rod at positions x (n_vertices, 3) [m],
+        the strain check, and the rods' reactions on their holders."""
         bad = evaluate(self.rods, self.frames, x, self.layout.place, self.terms, self.ends, self.xmat, MAX_STRAIN,
                        self._bands, self._band_of_rod)
         if bad >= 0:
@@ -140,6 +156,10 @@ class Step:
                                 lay.free_vertex, lay.free_body, lay.dofs, lay.mass, self.qvel, self.xfrc_applied,
                                 self.gravity, self.h, self.mass_damping, self.stiffness_damping, s.a_band, s.lt,
                                 s.g, s.z, s.den, self.v, self.other, self._rhs, self._kv, self.a0)
+
+    def restart(self) -> None:
+        """The rods' state was set from outside (World.set_positions, set_velocities):
+        forget what the mode carries between steps (nothing, but for generalized-alpha)."""
 
     def step(self) -> None:  # pragma: no cover - every mode has its own
         raise NotImplementedError
@@ -199,7 +219,7 @@ class Implicit(Step):
         mujoco.mj_forward(m, d)
         if self.reference:
             self.reference.correct(d)
-        a = self.contact(d, self.system, self.a0)
+        a = self._contact(d)
         if a is not None:
             # Contact impulses turn edges too: limit the strain they leave, moving only
             # the vertices no contact pushes on.
@@ -211,8 +231,18 @@ class Implicit(Step):
             mujoco.mj_Euler(m, d)
         else:
             mujoco.mj_implicit(m, d)
+        self._integrated(self.a0 if a is None else a)
         self.n_steps += 1
         self.check()
+
+    def _contact(self, d: mujoco.MjData) -> np.ndarray | None:
+        """The step's acceleration with contacts re-solved in its metric (None: no
+        contact touches a rod, a0 stands)."""
+        return self.contact(d, self.system, self.a0)
+
+    def _integrated(self, a: np.ndarray) -> None:
+        """After MuJoCo's integration with the rod dofs' acceleration a (n,): nothing more
+        for backward Euler."""
 
     def _touching(self) -> np.ndarray:
         """Inverse vertex masses with those a contact pushes on made TOUCHING_WEIGHT
@@ -271,7 +301,127 @@ class Projection(Step):
         self.check()
 
 
-MODES = {"explicit": Explicit, "implicit": Implicit, "projection": Projection}
+class GeneralizedAlpha(Implicit):
+    """Generalized-alpha (Chung and Hulbert 1993), linearly implicit: second order, no
+    numerical damping of resolved modes, unresolved ones damped to rho_inf per step
+    (:mod:`derods.sim.generalized_alpha`). Contacts are re-solved in its metric as in the
+    implicit mode; the strain limit projects positions at the start of a step (the
+    velocity change it makes is not carried in the scheme's acceleration)."""
+
+    mode = "alpha"
+
+    def __init__(self, *args, rho_inf: float = ga.RHO_INF, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.coefficients = ga.Coefficients.from_rho_inf(rho_inf)
+        self.a_prev = np.zeros(self.layout.n)
+        self._w = np.zeros(self.layout.n)
+        self._zero = np.zeros(self.layout.n)
+        self._shift = np.zeros(self.layout.n)
+        self._offset = np.zeros(self.layout.n)
+        self._start = True
+        #: Whether the last step was backward Euler's (a contact touched a rod).
+        self.euler_step = False
+        #: Newton iterations on the step's nonlinear equation after the linearized solve
+        #: (0: linearly implicit, as the implicit mode).
+        self.newton_iterations = NEWTON_ITERATIONS
+        rest = self.rods.rest_len
+        self._length_scale = float(np.min(rest)) if len(rest) else 1.0
+
+    def restart(self) -> None:
+        """Forget the carried acceleration: the next step starts from the forces'."""
+        self._start = True
+
+    def elastic(self) -> None:
+        if self._moving:
+            mujoco.mj_kinematics(self.model, self.data)
+        x = self.positions()
+        if self._project_positions(x):
+            x = self.positions()
+        self.forces(x)
+
+    def _project_positions(self, x: np.ndarray) -> int:
+        """Project the rods strained beyond the strain limit onto their rest lengths,
+        moving qpos and adding the move / h to qvel. Returns how many were."""
+        self.n_projected = 0
+        if not self.limited.any() or math.isinf(self.strain_limit):
+            return 0
+        inv_mass = self._touching() if self.n_steps else self.inv_mass
+        self._shift[:] = 0.0
+        n, _ = limit_strain(x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, inv_mass, self.layout.place,
+                            self._zero, self._shift, 1.0, self.limited, self.strain_limit, PROJECTION_TOL,
+                            PROJECTION_MAX_ITER, self._xp)
+        if n:
+            lay = self.layout
+            qpos = (lay.qpos_adr[:, None] + np.arange(3)).ravel()
+            self.qpos[qpos] += self._shift
+            self.qvel[lay.dofs] += self._shift / self.h
+        self.n_projected = n
+        return n
+
+    def _limit_strain(self, a: np.ndarray, inv_mass: np.ndarray | None = None) -> int:
+        return 0  # done on positions, at the start of the next step
+
+    def _unconstrained(self, lay, t, s) -> None:
+        c = self.coefficients
+        self.euler_step = False
+        self._offset[:] = 0.0
+        self._solve(lay, t, s, c)
+        self._start = False
+        fr = self.frames
+        saved = (fr.u.copy(), fr.t.copy(), fr.theta.copy(), fr.theta_end.copy())
+        last = math.inf
+        for k in range(self.newton_iterations + 1):
+            change = _ga.alpha_point(self.a0, self.a_prev, self.v, c.alpha_f, c.beta, c.gamma, self.h, self._offset)
+            if change <= NEWTON_TOL * self._length_scale or k == self.newton_iterations:
+                break
+            if change > NEWTON_CONTRACTION * last:  # not converging: this step is Euler's
+                fr.u[:], fr.t[:], fr.theta[:], fr.theta_end[:] = saved
+                self._euler()
+                return
+            last = change
+            predict_into(self.x, lay.place, self._zero, self._offset, 1.0, self._xp)
+            evaluate(self.rods, fr, self._xp, lay.place, t, self.ends, self.xmat, MAX_STRAIN, self._bands,
+                     self._band_of_rod)
+            self._solve(lay, t, s, c)
+        fr.u[:], fr.t[:], fr.theta[:], fr.theta_end[:] = saved
+
+    def _euler(self) -> None:
+        """Make this step backward Euler's: forces at x0, the implicit mode's solve."""
+        self.forces(self.x)
+        Implicit._unconstrained(self, self.layout, self.terms, self.system)
+        h = self.h
+        self.system.m_coef, self.system.s = 1.0 + h * self.mass_damping, h * h + h * self.stiffness_damping
+        self.euler_step = True
+
+    def _solve(self, lay, t, s, c) -> None:
+        """One linearized solve about x0 + offset, into self.a0 (the unconstrained qacc)."""
+        s.m_coef, s.s = _ga.alpha_step(
+            t.band, t.grad, t.g_tw, t.coef, self.rod_tw, s.tw_lo, s.tw_hi, s.tw_c, lay.free_vertex, lay.free_body,
+            lay.dofs, lay.mass, self.qvel, self.xfrc_applied, self.gravity, self.h, self.mass_damping,
+            self.stiffness_damping, c.alpha_m, c.alpha_f, c.beta, c.gamma, self._start, self.a_prev, self._offset,
+            s.a_band, s.lt, s.g, s.z, s.den, self.v, self.other, self._rhs, self._kv, self._w, self.a0)
+
+    def _contact(self, d: mujoco.MjData) -> np.ndarray | None:
+        a = self.contact(d, self.system, self.a0)
+        if a is None or self.euler_step:
+            return a
+        # A contact touches a rod: this step is backward Euler's, from the forces at x0.
+        # (Carried in the scheme's acceleration, a contact impulse would come back in the
+        # next steps' predictors, and its position response would be beta / gamma of
+        # Euler's: a rod dropped on the floor kept bouncing.)
+        self._euler()
+        return self.contact(d, self.system, self.a0)
+
+    def _integrated(self, a: np.ndarray) -> None:
+        if self.euler_step:
+            self._start = True  # the next step starts from the forces' acceleration
+            return
+        c = self.coefficients
+        _ga.finish_step(a, self.a_prev, c.beta, c.gamma, self.h, self.layout.qpos_adr, self.qpos)
+
+
+MODES = {"explicit": Explicit, "implicit": Implicit, "projection": Projection,
+         "alpha": GeneralizedAlpha}
 
 
 def explicit_dt_limit(entries: list[RodEntry], layout: Layout, rods: RodSet, frames: Frames, ends: EndBodies,

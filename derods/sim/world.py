@@ -41,7 +41,7 @@ from .integrators import explicit_dt_limit
 from .layout import END_KINDS, PROGRESS_FROM, Layout, RodEntry, add_to_spec
 
 #: Time stepping modes of a World ("auto" picks "implicit" or "explicit").
-MODES = ("auto", "implicit", "explicit", "projection")
+MODES = ("auto", "implicit", "alpha", "explicit", "projection")
 #: The lightest vertex [kg] a World accepts (MuJoCo refuses bodies below its mjMINVAL, 1e-15).
 MIN_VERTEX_MASS = 1e-12
 
@@ -82,7 +82,11 @@ class World:
     scene: None for an empty world, a path to an MJCF file, or a ``mujoco.MjSpec``.
     dt: time step [s]; None keeps the scene's (MuJoCo's default 2e-3).
     gravity: [m/s^2], shape (3,); None keeps the scene's.
-    mode: "implicit", "explicit", "auto" (implicit when dt exceeds half the
+    mode: "implicit" (linearly implicit backward Euler: unconditionally stable, damps
+        a mode of angular frequency w by (1 + (w h)^2)^(-1/2) per step), "alpha"
+        (generalized-alpha: as stable for linear systems, second order, keeps resolved
+        modes' amplitude and damps unresolved ones by ``rho_inf`` per step; see
+        :mod:`derods.sim.generalized_alpha`), "explicit", "auto" (implicit when dt exceeds half the
         estimated explicit stability limit of the stiffest rod), or "projection":
         the DER paper's method, an implicit step for bending and twisting with
         inextensibility enforced by fast projection (:mod:`derods.sim.projection`)
@@ -248,7 +252,7 @@ class World:
             self.mode = self.requested_mode
         supported = (mujoco.mjtIntegrator.mjINT_EULER, mujoco.mjtIntegrator.mjINT_IMPLICIT,
                      mujoco.mjtIntegrator.mjINT_IMPLICITFAST)
-        if self.mode == "implicit" and model.opt.integrator not in supported:
+        if self.mode in ("implicit", "alpha") and model.opt.integrator not in supported:
             name = mujoco.mjtIntegrator(model.opt.integrator).name
             raise ValueError(
                 f"the implicit rod step needs MuJoCo's Euler, implicit or implicitfast integrator, "
@@ -339,6 +343,7 @@ class World:
         fr, es = self._step.frames, self._edges(i)
         state = e.rod.advance(RodState(x, fr.u[es], fr.t[es], fr.theta[es]), self.positions(i))
         fr.u[es], fr.t[es], fr.theta[es] = state.u, state.t, state.theta
+        self._step.restart()
 
     def velocities(self, rod: int | str = 0) -> np.ndarray:
         """Vertex velocities [m/s] of a rod, shape (n_vertices, 3) (zero where held)."""
@@ -360,6 +365,7 @@ class World:
             raise ValueError(f"v must have shape {self._entries[i].x0.shape}, got {v.shape}")
         lo, hi = lay.dof_off[i], lay.dof_off[i + 1]
         self._data.qvel[lay.dofs[lo:hi]] = v[lay.free_vertex[lo // 3:hi // 3] - lay.v_off[i]].ravel()
+        self._step.restart()
 
     def dofs(self, rod: int | str = 0) -> np.ndarray:
         """MuJoCo dof ids of a rod's free vertices, three per vertex (x, y, z), in the
@@ -381,7 +387,7 @@ class World:
     def contact_force(self, rod: int | str = 0) -> np.ndarray:
         """Contact (constraint) force [N] on each vertex in the last step, shape (n_vertices, 3).
 
-        In implicit mode this is the force derods solved for in the implicit
+        In the implicit and alpha modes this is the force derods solved for in the step's
         metric (plus MuJoCo's for rows it left to MuJoCo); in explicit mode, MuJoCo's.
         """
         self.compile()
@@ -389,7 +395,8 @@ class World:
         lay = self._layout
         lo, hi = lay.dof_off[i], lay.dof_off[i + 1]
         out = np.zeros((self._entries[i].rod.n_vertices, 3))
-        f = self._step.contact_force[lo:hi] if self.mode == "implicit" else self._data.qfrc_constraint[lay.dofs[lo:hi]]
+        solved = self.mode in ("implicit", "alpha")
+        f = self._step.contact_force[lo:hi] if solved else self._data.qfrc_constraint[lay.dofs[lo:hi]]
         out[lay.free_vertex[lo // 3:hi // 3] - lay.v_off[i]] = f.reshape(-1, 3)
         return out
 
