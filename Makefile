@@ -6,8 +6,11 @@ STAMP := $(VENV)/.installed
 # MuJoCo 4.0 removed the cable plugin: the cable backend runs in a second environment.
 VENV317 := .venv317
 STAMP317 := $(VENV317)/.installed
+# PyElastica, a peer rod simulator, runs in a third environment of its own.
+VENVEL := .venv-elastica
+STAMPEL := $(VENVEL)/.installed
 
-.PHONY: demo core-demo test test317 venv317 bench report docs-images clean clean-cache
+.PHONY: demo core-demo test test317 test-elastica venv317 venv-elastica bench report docs-images clean clean-cache
 
 $(STAMP): pyproject.toml
 	@echo "make: creating $(VENV) and installing derods with numpy, scipy, mujoco, numba (a minute or two)"
@@ -41,15 +44,30 @@ $(STAMP317): pyproject.toml
 
 venv317: $(STAMP317)
 
+$(STAMPEL): pyproject.toml
+	@echo "make: creating $(VENVEL) with pyelastica 1.0.0 and derods (PyElastica compiles ~1 min of numba on first use)"
+	$(PYTHON) -m venv $(VENVEL)
+	$(VENVEL)/bin/python -m pip install --quiet --upgrade pip
+	$(VENVEL)/bin/python -m pip install --progress-bar off "pyelastica==1.0.0" -e '.[dev]'
+	touch $(STAMPEL)
+
+venv-elastica: $(STAMPEL)
+
+# Quick checks of the PyElastica backend in its environment.
+test-elastica: $(STAMPEL)
+	$(VENVEL)/bin/python -m pytest -q tests_elastica
+
 # Quick checks in MuJoCo 3.17: derods, the flexcomp and the cable backend.
 test317: $(STAMP317)
 	$(VENV317)/bin/python -m pytest -q tests317
 
 # The sample comparison report (docs/report/): accuracy sweeps, stability map, extreme
-# cases and hair at scale for derods and MuJoCo's native flexcomp. Resumes where a previous
+# cases and hair at scale for derods, MuJoCo's native flexcomp and cable, and PyElastica. Resumes where a previous
 # run stopped.
-report: $(STAMP) $(STAMP317)
+report: $(STAMP) $(STAMP317) $(STAMPEL)
 	$(VENV317)/bin/python -m derods compare --full --backends cable --workers 2 \
+		--results docs/report/results.jsonl --report-dir docs/report
+	$(VENVEL)/bin/python -m derods compare --full --backends elastica --workers 2 \
 		--results docs/report/results.jsonl --report-dir docs/report
 	$(VENV)/bin/python benchmarks/bench_hair.py --append-to docs/report/results.jsonl
 	$(VENV)/bin/python -m derods compare --full --workers 2 --results docs/report/results.jsonl --report-dir docs/report
@@ -63,4 +81,4 @@ clean-cache:
 	find derods -name __pycache__ -type d -prune -exec rm -rf {} +
 
 clean: clean-cache
-	rm -rf $(VENV) $(VENV317) build *.egg-info
+	rm -rf $(VENV) $(VENV317) $(VENVEL) build *.egg-info

@@ -106,6 +106,33 @@ def test_backend_missing_from_this_mujoco_is_skipped_with_a_message(capsys):
     assert "skipping backend 'cable'" in err and "make venv317" in err
 
 
+def test_pyelastica_outside_its_environment_is_skipped_with_a_message(capsys):
+    """PyElastica lives in .venv-elastica only (tests_elastica/ checks it there)."""
+    jobs = sweep.plan(["oscillation"], ["der", "elastica"], [8], [1e-2])
+    assert [j.params.backend for j in jobs] == ["der"]
+    err = capsys.readouterr().err
+    assert "skipping backend 'elastica'" in err and "make venv-elastica" in err
+
+
+def test_the_report_names_the_fastest_backend_per_level(tmp_path):
+    """Four backends' records: per case and error level the cheapest run of each, the
+    fastest in bold, and the targets section's winner with the runner-up's ratio."""
+    import json
+
+    recs = []
+    for backend, wall, err in (("der", 0.1, 0.005), ("flex", 0.5, 0.02), ("cable", 2.0, 0.0005),
+                               ("elastica", 1.0, 0.0008)):
+        recs.append({"case": "cantilever", "backend": backend, "mode": "m", "n_edges": 20,
+                     "dt": 1e-5 if backend == "elastica" else 1e-2, "young": 1e8, "length": 1.0, "radius": 0.01,
+                     "density": 1000.0, "stable": True, "rel_error": err, "wall_s": wall, "measured": 1.0})
+    results = tmp_path / "r.jsonl"
+    results.write_text("\n".join(json.dumps(r) for r in recs) + "\n")
+    text = report.report(results, tmp_path).read_text()
+    assert "| target error | der | cable | elastica | flex |" in text
+    assert "| 1 % | **0.1 s (m, n = 20, dt = 0.01)** |" in text
+    assert "| cantilever | der 0.1 s (flex x5) | der 0.1 s (elastica x10) | elastica 1 s (cable x2) |" in text
+
+
 def test_unknown_case_or_backend_is_refused_with_the_choices(capsys):
     from derods.__main__ import main
 

@@ -300,7 +300,8 @@ def main(argv: list[str] | None = None) -> int:
 
     c = sub.add_parser("compare", help="sweep cases x backends x n x dt; append records; write a report")
     c.add_argument("--cases", default="cantilever,frequency,circle,drop", help="comma-separated cases")
-    c.add_argument("--backends", default="der,flex", help="comma-separated backends (der, flex, cable)")
+    c.add_argument("--backends", default="der,flex",
+                   help="comma-separated backends (der, flex, cable in .venv317, elastica in .venv-elastica)")
     c.add_argument("--n-edges", default="10,20,50,100", help="comma-separated edge counts")
     c.add_argument("--dt", default="1e-2", help="comma-separated time steps [s]")
     c.add_argument("--modes", default="implicit", help="comma-separated derods modes (implicit, alpha, explicit, "
@@ -339,10 +340,12 @@ def main(argv: list[str] | None = None) -> int:
     b = sub.add_parser("bench", help="run a benchmark case and print one record per run")
     b.add_argument("case", choices=["cantilever", "frequency", "drop", "michell", "circle", "twist", "stability",
                                      "extreme", "oscillation", "hair"])
-    b.add_argument("--backend", default="der", choices=["der", "flex", "cable"],
-                   help="der (default), flex (MuJoCo's 1D flexcomp), cable (MuJoCo 3.x)")
+    b.add_argument("--backend", default="der", choices=["der", "flex", "cable", "elastica"],
+                   help="der (default), flex (MuJoCo's 1D flexcomp), cable (MuJoCo 3.x: .venv317), "
+                        "elastica (PyElastica: .venv-elastica)")
     b.add_argument("--n-edges", type=_positive_int, default=None, help="edges per rod (default 20)")
-    b.add_argument("--dt", type=float, default=None, help="time step [s] (default 1e-2)")
+    b.add_argument("--dt", type=float, default=None,
+                   help="time step [s] (default 1e-2; elastica: its largest stable dt, found by search)")
     b.add_argument("--young", type=float, default=None, help="Young's modulus E [Pa] (default 1e8)")
     g = b.add_mutually_exclusive_group()
     g.add_argument("--shear", type=float, default=None, help="shear modulus G [Pa]")

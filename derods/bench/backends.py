@@ -20,7 +20,7 @@ from .. import scenes, shapes
 from ..rod import Rod
 from ..sim.world import ContactParams, World
 from ..twist import TwistBoundary
-from . import native
+from . import elastica, native
 
 
 class RodSimulator(Protocol):
@@ -59,7 +59,7 @@ class RodSimulator(Protocol):
 class Backend:
     """How one backend builds the benchmark's rods.
 
-    name: "der", "flex" or "cable". mode: the record's mode for a run (derods: its
+    name: "der", "flex", "cable" or "elastica". mode: the record's mode for a run (derods: its
     own mode; the natives: their MuJoCo integrator). requirement: None if this MuJoCo
     runs it, else the message saying how to get it. cantilever(p, gravity, damping):
     a rod clamped at (0, 0, 1) m along +x, with its rest vertices. free_rod(p, x, scene,
@@ -175,6 +175,18 @@ def _cable_requirement() -> str | None:
             "make venv317, then run with .venv317/bin/python")
 
 
+# --- PyElastica -----------------------------------------------------------------------------------
+
+def _elastica_cantilever(p, gravity: float, damping: float):
+    # Started h/2 behind the clamp, as derods' rod (see derods.bench.elastica).
+    x = shapes.cantilever(p.length, p.n_edges, start=(0.0, 0.0, 1.0))
+    return elastica.ElasticaRod(x, p.material, p.dt, gravity, damping), x
+
+
+def _elastica_unsupported(*args, **kwargs):
+    raise ValueError("the elastica backend runs the clamped straight cantilever only (see derods.bench.elastica)")
+
+
 BACKENDS = {
     "der": Backend("der", lambda p: p.mode, lambda: None, _der_cantilever, _der_clamped, _der_free, _der_ring,
                    _force_pair),
@@ -182,5 +194,7 @@ BACKENDS = {
                     lambda p, theta, self_contact=False: native.flex_ring(p, theta), _force_pair),
     "cable": Backend("cable", lambda p: "implicitfast", _cable_requirement, _cable_cantilever, _cable_clamped,
                      _cable_free, lambda p, theta, self_contact=False: native.cable_ring(p, theta), _cable_couple),
+    "elastica": Backend("elastica", lambda p: "position_verlet", elastica.available, _elastica_cantilever,
+                        _elastica_unsupported, _elastica_unsupported, None, _elastica_unsupported),
 }
 

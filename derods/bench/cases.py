@@ -66,7 +66,8 @@ BACKEND_CASES = {"der": ("cantilever", "frequency", "drop", "michell", "circle",
                  "flex": ("cantilever", "frequency", "drop", "circle", "stability", "extreme", "oscillation")
                  + (("michell",) if native.has_flex_twist() else ()),
                  "cable": ("cantilever", "frequency", "michell", "circle", "drop", "stability", "extreme",
-                           "oscillation")}
+                           "oscillation"),
+                 "elastica": ("cantilever", "frequency", "oscillation")}
 
 #: A dropped rod is at rest when no vertex moves faster than this [m/s].
 REST_SPEED = 1e-3
@@ -84,7 +85,9 @@ class CaseParams:
     n_edges: edges of the rod. dt: time step [s]. young: E [Pa]. shear: G [Pa]
     (None: from poisson). length [m], radius [m], density [kg/m^3], gravity
     [m/s^2] (magnitude, pointing down). mode: one of DER_MODES.
-    backend: "der", or MuJoCo's native "flex" or "cable" (:mod:`derods.bench.backends`).
+    backend: "der", MuJoCo's native "flex" or "cable", or "elastica" (PyElastica, at the dt
+    given: :func:`derods.bench.elastica.search_dt` finds its largest stable one)
+    (:mod:`derods.bench.backends`).
     """
 
     n_edges: int = 20
@@ -631,4 +634,9 @@ def main(case: str, params: CaseParams, as_json: bool, stream=None) -> int:
 def params_from_args(args) -> CaseParams:
     """CaseParams from parsed command-line options (see derods.__main__)."""
     fields = {f.name for f in dataclasses.fields(CaseParams)}
-    return CaseParams(**{k: v for k, v in vars(args).items() if k in fields and v is not None})
+    p = CaseParams(**{k: v for k, v in vars(args).items() if k in fields and v is not None})
+    if p.backend == "elastica" and getattr(args, "dt", None) is None:
+        from .elastica import search_dt
+
+        p = dataclasses.replace(p, dt=search_dt(p))
+    return p

@@ -20,6 +20,7 @@ import pathlib
 import sys
 
 from . import cases as bench
+from . import elastica
 
 #: The fields that identify a run (a re-run with the same ones is skipped).
 KEY_FIELDS = ("case", "backend", "n_edges", "dt", "mode", "young", "length", "radius", "density")
@@ -33,7 +34,7 @@ class Job:
 
     def key(self) -> tuple:
         p = self.params
-        mode = p.mode if p.backend == "der" else ("discrete" if p.backend == "flex" else "implicitfast")
+        mode = p.build.mode(p)
         return (self.case, p.backend, p.n_edges, float(p.dt), mode, float(p.young), float(p.length),
                 float(p.radius), float(p.density))
 
@@ -87,26 +88,32 @@ def plan(cases, backends, n_edges, dts, modes=("implicit",), young=1e8, **params
             if case not in bench.BACKEND_CASES.get(backend, ()):
                 continue
             for n in n_edges:
-                for dt in dts:
+                # PyElastica is explicit: it runs at its own largest stable dt, whatever the plan's.
+                for dt in (dts if backend != "elastica" else [None]):
                     for mode in (modes if backend == "der" else ("implicit",)):
-                        p = bench.CaseParams(n_edges=n, dt=dt, young=young, mode=mode, backend=backend,
+                        p = bench.CaseParams(n_edges=n, dt=dt or 1.0, young=young, mode=mode, backend=backend,
                                              **params)
+                        if dt is None:
+                            p = dataclasses.replace(p, dt=elastica.search_dt(p))
                         jobs.append(Job(case, p))
     return jobs
 
 
 #: The sample report's sweep: (cases, backends, n_edges, dts, extra parameters).
-ALL = ["der", "flex", "cable"]
+ALL = ["der", "flex", "cable", "elastica"]
 _RING = {"young": 1e7, "radius": 0.005, "shear": 5e6}
+#: derods' modes in the accuracy and oscillation rows: backward Euler and generalized-alpha.
+MODES = {"modes": ("implicit", "alpha")}
 FULL_PLAN = [
-    (["cantilever", "circle"], ALL, [10, 20, 50, 100, 200], [1e-2], {}),
-    (["frequency"], ALL, [10, 20, 50, 100], [1e-3], {}),
+    (["cantilever"], ALL, [10, 20, 50, 100, 200], [1e-2], MODES),
+    (["circle"], ALL, [10, 20, 50, 100, 200], [1e-2], {}),
+    (["frequency"], ALL, [10, 20, 50, 100], [1e-3], MODES),
     (["drop"], ALL, [20, 50], [2e-3, 1e-2], {"young": 1e7}),
     (["michell"], ALL, [20, 50], [1e-3, 1e-2], _RING),
     # The cable's O(n^3) step makes a 100-segment ring bisection take minutes at dt = 1e-3.
     (["michell"], ["der", "flex"], [100], [1e-3, 1e-2], _RING),
     (["extreme"], ALL, [50], [2e-3], {}),
-    (["oscillation"], ALL, [20, 50], [1e-3, 3e-3, 1e-2], {"young": 1e9}),
+    (["oscillation"], ALL, [20, 50], [1e-3, 3e-3, 1e-2], {"young": 1e9} | MODES),
 ]
 STABILITY_E = [1e5, 1e7, 1e9, 1e11]
 STABILITY_DT = [1e-4, 1e-3, 1e-2, 2e-2]
@@ -115,7 +122,8 @@ STABILITY_N = [10, 50, 200, 400]
 
 def full_plan(backends=("der", "flex")) -> list[Job]:
     """Every run of the sample report for these backends: accuracy sweeps, the stability
-    map, extreme cases. (The cable runs in MuJoCo 3.17: ``backends=("cable",)`` there.)"""
+    map, extreme cases. (The cable runs in MuJoCo 3.17: ``backends=("cable",)`` there; PyElastica
+    in its own environment: ``backends=("elastica",)``.)"""
     jobs = []
     for cases, plan_backends, ns, dts, extra in FULL_PLAN:
         chosen = [b for b in plan_backends if b in backends]
@@ -134,7 +142,7 @@ def _run(job: Job) -> list[dict]:
     except Exception as err:  # a record of the failure is itself a result
         p = job.params
         return [{"case": job.case, "backend": p.backend, "n_edges": p.n_edges, "dt": p.dt,
-                 "mode": p.mode if p.backend == "der" else ("discrete" if p.backend == "flex" else "implicitfast"),
+                 "mode": p.build.mode(p),
                  "young": p.young, "length": p.length,
                  "radius": p.radius, "density": p.density, "stable": False, "measured": None,
                  "rel_error": None, "wall_s": 0.0, "note": f"{type(err).__name__}: {err}"}]
