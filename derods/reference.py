@@ -57,6 +57,25 @@ def cantilever_elastica(q: float, length: float, alpha: float, n_nodes: int = 40
     }
 
 
+#: beta_1 L of a free-free beam (cosh x cos x = 1) and its mode's sigma.
+FREE_FREE_BETA_L = 4.7300407449
+FREE_FREE_SIGMA = 0.9825022158
+
+
+def free_free_frequency(alpha: float, line_density: float, length: float) -> float:
+    """First bending frequency [Hz] of a free-free beam (Euler-Bernoulli):
+    f_1 = (4.7300^2 / (2 pi)) sqrt(alpha / (rho A L^4))."""
+    return FREE_FREE_BETA_L**2 / (2.0 * np.pi) * np.sqrt(alpha / (line_density * length**4))
+
+
+def free_free_mode(s: np.ndarray, length: float) -> np.ndarray:
+    """The free-free beam's first mode shape at arc lengths s [m], shape of s, largest
+    |value| 1 (at the ends): cosh + cos - sigma (sinh + sin) of beta_1 s."""
+    b = FREE_FREE_BETA_L * np.asarray(s, dtype=float) / length
+    phi = np.cosh(b) + np.cos(b) - FREE_FREE_SIGMA * (np.sinh(b) + np.sin(b))
+    return phi / np.max(np.abs(phi))
+
+
 def cantilever_frequency(alpha: float, line_density: float, length: float, mode: int = 1) -> float:
     """Bending frequency [Hz] of a clamped-free beam (REFERENCE.md case 4).
 

@@ -37,12 +37,15 @@ def test_cantilever_sags_as_the_elastica():
 
 
 def test_oscillation_keeps_its_amplitude():
-    """Explicit and symplectic: the undamped swing keeps > 0.999 per period (measured
-    0.99988) at E = 1e9, its frequency within 1 % (measured +0.15 %)."""
-    rec, = bench.oscillation(_at_stable_dt(n_edges=20, young=1e9))
-    assert rec["stable"], rec["note"]
-    assert rec["measured"] > 0.999
-    assert abs(rec["frequency_error"]) < 0.01
+    """Explicit and symplectic: the undamped swings keep > 0.999 per period at E = 1e9
+    (measured 0.99988 clamped, 1.00006 free: the free rod rings with the faster modes its
+    start excites, which the turning points' hysteresis ignores), frequencies within 1 %
+    clamped (measured +0.15 %) and 2.5 % free (n = 20: lumped end masses)."""
+    clamped, free = bench.oscillation(_at_stable_dt(n_edges=20, young=1e9))
+    for rec, tol in ((clamped, 0.01), (free, 0.025)):
+        assert rec["stable"], rec["note"]
+        assert rec["measured"] > 0.999
+        assert abs(rec["frequency_error"]) < tol
 
 
 def test_set_positions_turns_the_directors_with_the_edges():

@@ -183,8 +183,14 @@ def _elastica_cantilever(p, gravity: float, damping: float):
     return elastica.ElasticaRod(x, p.material, p.dt, gravity, damping), x
 
 
+def _elastica_free(p, x: np.ndarray, scene: str | None, damping: float = 0.0):
+    if scene:
+        raise ValueError("the elastica backend has no MuJoCo scene to put a rod in")
+    return elastica.ElasticaRod(x, p.material, p.dt, p.gravity, damping, clamped=False)
+
+
 def _elastica_unsupported(*args, **kwargs):
-    raise ValueError("the elastica backend runs the clamped straight cantilever only (see derods.bench.elastica)")
+    raise ValueError("the elastica backend runs straight rods only, clamped or free (see derods.bench.elastica)")
 
 
 BACKENDS = {
@@ -195,6 +201,6 @@ BACKENDS = {
     "cable": Backend("cable", lambda p: "implicitfast", _cable_requirement, _cable_cantilever, _cable_clamped,
                      _cable_free, lambda p, theta, self_contact=False: native.cable_ring(p, theta), _cable_couple),
     "elastica": Backend("elastica", lambda p: "position_verlet", elastica.available, _elastica_cantilever,
-                        _elastica_unsupported, _elastica_unsupported, None, _elastica_unsupported),
+                        _elastica_unsupported, _elastica_free, None, _elastica_unsupported),
 }
 

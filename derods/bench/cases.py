@@ -222,23 +222,73 @@ def frequency(p: CaseParams, periods: int = 4) -> list[dict]:
     return [_record("frequency", p, world, measured, ref, stable, wall, note=note)]
 
 
-def swing_amplitudes(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def swing_amplitudes(z: np.ndarray, hysteresis: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
     """The indices of the turning points of a sampled swing z (n,) and the peak-to-peak
-    amplitude between each one and the next, shape (turns - 1,)."""
-    inner = np.flatnonzero(((z[1:-1] > z[:-2]) & (z[1:-1] >= z[2:])) | ((z[1:-1] < z[:-2]) & (z[1:-1] <= z[2:])))
-    turns = inner + 1
+    amplitude between each one and the next, shape (turns - 1,).
+
+    A turning point counts once the swing has come back from it by ``hysteresis`` times
+    the last swing (at first, z's whole range): ripples of faster modes riding on the
+    swing (an explicit integrator keeps them all) are not turns, a decaying swing's
+    late turns are. An extreme the record ends on, unconfirmed, is not counted."""
+    z = np.asarray(z, dtype=float)
+    if len(z) < 3:
+        return np.zeros(0, dtype=int), np.zeros(0)
+    band = hysteresis * float(np.ptp(z))
+    turns, k, rising = [], 0, None
+    for i in range(1, len(z)):
+        if rising is None:
+            if abs(z[i] - z[0]) > band:
+                rising = z[i] > z[0]
+                k = i
+            continue
+        if (z[i] > z[k]) == rising and z[i] != z[k]:
+            k = i  # a new extreme in the current direction
+        elif abs(z[i] - z[k]) > band:
+            if turns:
+                band = hysteresis * abs(z[k] - z[turns[-1]])
+            turns.append(k)
+            rising, k = not rising, i
+    turns = np.array(turns, dtype=int)
     return turns, np.abs(np.diff(z[turns]))
 
 
+#: The free-free rod of the oscillation case is this many times the cantilever's length,
+#: which puts its first mode (4.7300^2 / 1.8751^2 / 2.5^2 = 1.018 times the cantilever's)
+#: at the same steps per period.
+FREE_LENGTH = 2.5
+
+
 def oscillation(p: CaseParams, periods: int = 10) -> list[dict]:
-    """Numerical damping: an undamped cantilever released straight under gravity swings
-    about its sagged shape; measured is the fraction of its amplitude kept per period
-    (1 for an exact integrator), the geometric mean over ``periods`` periods of the
-    peak-to-peak amplitude two turning points apart. Also records the swing's frequency
-    against Euler-Bernoulli's first mode (frequency_error)."""
+    """Numerical damping, on two geometries: the fraction of the amplitude kept per
+    period (1 for an exact integrator; the geometric mean over ``periods`` periods of the
+    peak-to-peak amplitude two turning points apart) and the frequency error against
+    Euler-Bernoulli.
+
+    clamped: an undamped cantilever released straight under gravity swings about its
+    sagged shape (the tip's height). free: a free-free rod FREE_LENGTH times as long, no
+    gravity, started at rest in its first mode (ends at 1 % of L; an end's height above
+    the rod's mean). The cable sets shapes only when clamped: it runs the first alone."""
     mat = p.material
     f1 = reference.cantilever_frequency(mat.alpha, mat.line_density, p.length)
     world, _ = p.build.cantilever(p, p.gravity, 0.0)
+    out = [_swing("clamped", p, world, f1, periods, lambda x: x[-1, 2])]
+    if p.backend != "cable":
+        length = FREE_LENGTH * p.length
+        f_free = reference.free_free_frequency(mat.alpha, mat.line_density, length)
+        free = dataclasses.replace(p, gravity=0.0, length=length)
+        x = shapes.straight(length, p.n_edges, start=(0.0, 0.0, 1.0))
+        world = p.build.free_rod(free, x, None, 0.0)
+        x0 = x.copy()
+        x0[:, 2] += 0.01 * length * reference.free_free_mode(x[:, 0], length)
+        world.set_positions(0, x0)
+        out.append(_swing("free", p, world, f_free, periods, lambda x: x[-1, 2] - x[:, 2].mean(),
+                          rod_length=length))
+    return out
+
+
+def _swing(variant: str, p: CaseParams, world, f1: float, periods: int, height, **extra) -> dict:
+    """Step ``world`` for ``periods`` + 1/2 periods of f1 [Hz], recording height(positions)
+    [m]; the oscillation record of what it kept (with ``extra`` fields)."""
     n_steps = int(math.ceil((periods + 0.5) / f1 / p.dt))
     z = np.empty(n_steps)
     t0 = time.perf_counter()
@@ -246,7 +296,7 @@ def oscillation(p: CaseParams, periods: int = 10) -> list[dict]:
     try:
         for k in range(n_steps):
             world.step()
-            z[k] = world.positions()[-1, 2]
+            z[k] = height(world.positions())
         turns, amp = swing_amplitudes(z)
         if len(amp) >= 3 and amp[0] > 0:
             # turning points two apart are one period apart
@@ -258,8 +308,9 @@ def oscillation(p: CaseParams, periods: int = 10) -> list[dict]:
     except DivergenceError as err:
         stable, note = False, str(err)
     wall = time.perf_counter() - t0
-    return [_record("oscillation", p, world, measured, 1.0, stable, wall, frequency=freq, frequency_ref=f1,
-                    frequency_error=None if freq is None else freq / f1 - 1.0, periods=periods, note=note)]
+    return _record("oscillation", p, world, measured, 1.0, stable, wall, variant=variant, frequency=freq,
+                   frequency_ref=f1, frequency_error=None if freq is None else freq / f1 - 1.0, periods=periods,
+                   note=note, **extra)
 
 
 def drop(p: CaseParams, sim_time: float = 3.0, mass_damping: float = 2.0) -> list[dict]:
@@ -606,7 +657,7 @@ def format_record(rec: dict) -> str:
     if "scene" in rec:
         parts.append(f"{rec['scene']} tilt {rec['tilt']:g}")
     if "variant" in rec:
-        parts.append(f"{rec['variant']}: {rec['outcome']}")
+        parts.append(rec["variant"] + (f": {rec['outcome']}" if "outcome" in rec else ""))
     parts.append(f"n={rec['n_edges']} dt={rec['dt']:g} E={rec['young']:.3g} {rec['mode']}")
     if not rec["stable"]:
         parts.append(f"UNSTABLE: {rec['note']}")

@@ -13,7 +13,7 @@ MuJoCo 3.17's. It is set up as a careful PyElastica user would:
 - PositionVerlet at the largest stable dt found by search
   (:func:`largest_stable_dt`), not at the dt a MuJoCo backend takes.
 
-What it runs: cantilever, frequency, oscillation. Not: drop, stability, extreme
+What it runs: cantilever, frequency, oscillation (clamped and free). Not: drop, stability, extreme
 (MuJoCo's contacts and scenes; its own stability limit is what the dt search measures),
 michell and twist (a ring with imposed total twist and an end twist need directors
 set by hand that a comparison could get subtly wrong), circle (its end couple lives in
@@ -47,13 +47,14 @@ def available() -> str | None:
 
 
 class ElasticaRod:
-    """One PyElastica Cosserat rod clamped at its first element, behind the harness's
+    """One PyElastica Cosserat rod, clamped at its first element or free, behind the harness's
     protocol (:class:`derods.bench.backends.RodSimulator`; ``model`` and ``data`` are
     None: nothing here is MuJoCo's).
 
     x (n + 1, 3) [m]: straight rest vertices, first edge in the clamp. material: a
     :class:`derods.Material`. dt [s]; gravity [m/s^2] (magnitude, along -z); damping:
-    uniform velocity damping rate [1/s] (0: none).
+    uniform velocity damping rate [1/s] (0: none). clamped: hold the first node and the
+    first element's directors (else the rod is free).
     """
 
     label = "PyElastica"
@@ -61,7 +62,8 @@ class ElasticaRod:
     model = None
     data = None
 
-    def __init__(self, x: np.ndarray, material, dt: float, gravity: float, damping: float = 0.0):
+    def __init__(self, x: np.ndarray, material, dt: float, gravity: float, damping: float = 0.0,
+                 clamped: bool = True):
         import elastica as ea
 
         class Simulator(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.Damping):
@@ -77,8 +79,10 @@ class ElasticaRod:
             base_radius=material.radius, density=material.density, youngs_modulus=material.young,
             shear_modulus=material.shear_modulus)
         self.sim.append(self.rod)
-        self.sim.constrain(self.rod).using(ea.OneEndFixedBC, constrained_position_idx=(0,),
-                                           constrained_director_idx=(0,))
+        self.clamped = clamped
+        if clamped:
+            self.sim.constrain(self.rod).using(ea.OneEndFixedBC, constrained_position_idx=(0,),
+                                               constrained_director_idx=(0,))
         if gravity:
             self.sim.add_forcing_to(self.rod).using(ea.GravityForces, acc_gravity=np.array([0.0, 0.0, -gravity]))
         if damping:
@@ -112,14 +116,14 @@ class ElasticaRod:
 
     def set_positions(self, rod, x: np.ndarray) -> None:
         """Move the nodes to x (n + 1, 3) [m] at rest, turning each element's directors
-        with its tangent (so that no shear is set), the clamped element unchanged."""
+        with its tangent (so that no shear is set), a clamped first element unchanged."""
         x = np.asarray(x, dtype=float)
         r = self.rod
         r.position_collection[:] = x.T
         r.velocity_collection[:] = 0.0
         r.omega_collection[:] = 0.0
         d = r.director_collection  # (3, 3, n): rows d1, d2, d3 of each element
-        for k in range(1, d.shape[2]):
+        for k in range(1 if self.clamped else 0, d.shape[2]):
             t = x[k + 1] - x[k]
             t /= np.linalg.norm(t)
             d1 = d[0, :, k] - (d[0, :, k] @ t) * t

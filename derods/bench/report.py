@@ -252,22 +252,24 @@ def _oscillation_section(records) -> list[str]:
     osc = [r for r in records if r["case"] == "oscillation"]
     if not osc:
         return []
-    out = ["## oscillation", "", "Numerical damping: an undamped cantilever (E = 1e9 Pa, L = 1 m, r = 1 cm, "
-           "f1 = 2.80 Hz) released straight under gravity; the fraction of its amplitude kept per period over 10 "
+    out = ["## oscillation", "", "Numerical damping: an undamped cantilever (clamped: E = 1e9 Pa, L = 1 m, r = 1 cm, "
+           "f1 = 2.80 Hz) released straight under gravity, and a free-free rod 2.5 m long (free: f1 = 2.85 Hz) "
+           "started in its first mode without gravity; the fraction of its amplitude kept per period over 10 "
            "periods (1 for an exact integrator; backward Euler keeps (1 + (omega h)^2)^(-1 / (2 f1 h))) and the "
            "frequency error against Euler-Bernoulli's first mode. The cable carries the joint damping its "
            "set-up adds (0.01 E I / h, `derods/bench/native.py`), which dominates its loss at every dt. "
            "der/alpha is `World(mode=\"alpha\")` (generalized-alpha, rho_inf = 0.6: second order, no damping of "
            "resolved modes); elastica runs explicitly at its own largest stable dt.", "",
-           "| backend/mode | n | dt | amplitude kept per period | frequency error | us/step |",
-           "|---|---|---|---|---|---|"]
-    for r in sorted(osc, key=lambda r: (r["backend"], r.get("mode", ""), r["n_edges"], -r["dt"])):
-        label = f"{r['backend']}/{r.get('mode')}"
+           "| rod | backend/mode | n | dt | amplitude kept per period | frequency error | us/step |",
+           "|---|---|---|---|---|---|---|"]
+    for r in sorted(osc, key=lambda r: (r.get("variant", "clamped"), r["backend"], r.get("mode", ""), r["n_edges"],
+                                        -r["dt"])):
+        label = f"{r.get('variant', 'clamped')} | {r['backend']}/{r.get('mode')}"
         if not r.get("stable") or r.get("measured") is None:
             out.append(f"| {label} | {r['n_edges']} | {r['dt']:g} | {'UNSTABLE' if not r.get('stable') else '-'} | "
                        f"{r.get('note', '')[:120]} | |")
             continue
-        out.append(f"| {label} | {r['n_edges']} | {r['dt']:g} | {r['measured']:.3f} | "
+        out.append(f"| {label} | {r['n_edges']} | {r['dt']:g} | {r['measured']:.4f} | "
                    f"{100 * r['frequency_error']:+.2f} % | {r['us_per_step']:.0f} |")
     return out + [""]
 
