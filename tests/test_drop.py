@@ -45,6 +45,12 @@ def test_drop_writes_a_video_of_falling_rods(tmp_path, capsys):
     assert [p.name for p in tmp_path.iterdir()] == ["drop.mp4"]  # no temporary left over
 
 
+def test_drop_steps_in_the_mode_asked_for(tmp_path, capsys):
+    out = tmp_path / "drop.mp4"
+    assert main(["drop", "--mode", "alpha", "--out", str(out)] + SMALL) == 0
+    assert "(120 steps, alpha," in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("scene", scenes.names())
 def test_every_scene_loads_and_frames_its_rods(scene):
     """Each scene compiles with rods in it, and its camera sees the rods where they start."""

@@ -28,14 +28,14 @@ from .implicit import factor_system, gather_dofs, k_matvec_into, sm_solve_into
 
 @nb.njit(cache=True)
 def alpha_step(k_band, grad, g_tw, coef, rod_tw, tw_lo, tw_hi, tw_c, free_vertex, free_body, dofs, mass, qvel,
-               xfrc_applied, gravity, h, mass_damping, stiffness_damping, am, af, beta, gamma, start, a_prev,
-               offset, a_band, lt, g, z, den, v, other, rhs, kv, w, qacc):
+               xfrc_applied, gravity, h, mass_damping, stiffness_damping, am, af, beta, gamma, a_prev, offset,
+               a_band, lt, g, z, den, v, other, rhs, kv, w, qacc):
     """The generalized-alpha step without contact, for all rods: factor A / gamma, solve
     for the unconstrained qacc (n,) [m/s^2] (written into ``qacc``).
 
     Arguments as :func:`derods._numba.implicit.unconstrained_step`'s, plus am, af, beta,
     gamma (the scheme's coefficients), a_prev (n,) [m/s^2] the last step's algorithmic
-    acceleration (set here to the explicit acceleration when ``start``), offset (n,) [m]
+    acceleration, offset (n,) [m]
     where grad and K were evaluated, from the start of the step (0 on the first Newton
     iteration; then the last iterate's x_{1-af} - x0), w (n,) scratch.
     Returns (m_coef, s), the weights of M and K in the factored matrix.
@@ -52,13 +52,6 @@ def alpha_step(k_band, grad, g_tw, coef, rod_tw, tw_lo, tw_hi, tw_c, free_vertex
             k = 3 * p + a
             v[k] = qvel[dofs[k]]
             other[k] = mass[k] * gravity[a] + xfrc_applied[b, a]
-    if start:  # the acceleration the forces give now: a0 = M^-1 (F - grad - D v)
-        k_matvec_into(k_band, g, tw_lo, tw_hi, tw_c, v, kv)
-        for p in range(len(free_vertex)):
-            vtx = free_vertex[p]
-            for a in range(3):
-                k = 3 * p + a
-                a_prev[k] = (other[k] - grad[vtx, a] - stiffness_damping * kv[k]) / mass[k] - mass_damping * v[k]
     factor_system(k_band, mass, m_coef, s, a_band, lt, g, tw_lo, tw_hi, tw_c, z, den)
     # rhs = F - grad - am M a0 - a_m M v_f - K (b v_f + (1-af) dx - offset), with the predictors
     # v_f = (1-af)(v0 + h (1-gamma) a0) + af v0 and dx = h v0 + h^2 (1/2 - beta) a0.

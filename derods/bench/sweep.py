@@ -108,7 +108,7 @@ FULL_PLAN = [
     (["cantilever"], ALL, [10, 20, 50, 100, 200], [1e-2], MODES),
     (["circle"], ALL, [10, 20, 50, 100, 200], [1e-2], {}),
     (["frequency"], ALL, [10, 20, 50, 100], [1e-3], MODES),
-    (["drop"], ALL, [20, 50], [2e-3, 1e-2], {"young": 1e7}),
+    (["drop"], ALL, [20, 50], [2e-3, 1e-2], {"young": 1e7} | MODES),
     (["michell"], ALL, [20, 50], [1e-3, 1e-2], _RING),
     # The cable's O(n^3) step makes a 100-segment ring bisection take minutes at dt = 1e-3.
     (["michell"], ["der", "flex"], [100], [1e-3, 1e-2], _RING),
@@ -132,7 +132,7 @@ def full_plan(backends=("der", "flex")) -> list[Job]:
         for backend in backends:
             # The cable's dense joint chain costs O(n^3) per step: 12 ms at n = 200.
             ns = [n for n in STABILITY_N if n <= 200] if backend == "cable" else STABILITY_N
-            jobs += plan(["stability"], [backend], ns, STABILITY_DT, young=young)
+            jobs += plan(["stability"], [backend], ns, STABILITY_DT, young=young, **MODES)
     return jobs
 
 

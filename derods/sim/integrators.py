@@ -59,10 +59,13 @@ TOUCHING_WEIGHT = 1e-2
 #: and the stiff stretching term turns that into a drag: an undamped cantilever swinging
 #: at w h = 0.18 kept 0.885 of its amplitude per period; iterating removes it.
 NEWTON_ITERATIONS = 4
-NEWTON_TOL = 1e-9
+NEWTON_TOL = 1e-6
 #: An iteration must shrink the change at least this much, or the step falls back to
 #: backward Euler's (large rotations per step, where the iteration need not converge).
 NEWTON_CONTRACTION = 0.5
+#: After the last iteration, a change above this [relative to the shortest edge] makes the
+#: step backward Euler's too.
+NEWTON_ACCEPT = 1e-3
 
 
 class Step:
@@ -302,11 +305,13 @@ class Projection(Step):
 
 
 class GeneralizedAlpha(Implicit):
-    """Generalized-alpha (Chung and Hulbert 1993), linearly implicit: second order, no
-    numerical damping of resolved modes, unresolved ones damped to rho_inf per step
-    (:mod:`derods.sim.generalized_alpha`). Contacts are re-solved in its metric as in the
-    implicit mode; the strain limit projects positions at the start of a step (the
-    velocity change it makes is not carried in the scheme's acceleration)."""
+    """Generalized-alpha (Chung and Hulbert 1993) solved by Newton's method (up to
+    NEWTON_ITERATIONS re-linearizations at the scheme's evaluation point): second order,
+    no numerical damping of resolved modes, unresolved ones damped to rho_inf per step
+    (:mod:`derods.sim.generalized_alpha`). A step in which a contact touches a rod, or
+    Newton's iteration stalls, is backward Euler's (contacts re-solved in its metric, as
+    in the implicit mode). The strain limit projects positions at the start of a step
+    (the velocity change it makes is not carried in the scheme's acceleration)."""
 
     mode = "alpha"
 
@@ -319,8 +324,12 @@ class GeneralizedAlpha(Implicit):
         self._shift = np.zeros(self.layout.n)
         self._offset = np.zeros(self.layout.n)
         self._start = True
-        #: Whether the last step was backward Euler's (a contact touched a rod).
+        self._touched = False
+        #: Whether the last step was backward Euler's (the first, a contact touched a
+        #: rod, or Newton's iteration stalled).
         self.euler_step = False
+        #: Linear solves the last step's Newton iterations made (1: converged at once).
+        self.solves = 0
         #: Newton iterations on the step's nonlinear equation after the linearized solve
         #: (0: linearly implicit, as the implicit mode).
         self.newton_iterations = NEWTON_ITERATIONS
@@ -364,17 +373,27 @@ class GeneralizedAlpha(Implicit):
     def _unconstrained(self, lay, t, s) -> None:
         c = self.coefficients
         self.euler_step = False
+        if self._start:
+            # The first step (and the first after a restart or a contact) is backward
+            # Euler's, whose acceleration seeds the scheme's: the forces' explicit
+            # acceleration in a stiff state (an edge stretched by the last Euler step) is
+            # huge, and gamma a1 = qacc - (1 - gamma) a0 then throws the rod.
+            self._euler()
+            return
         self._offset[:] = 0.0
         self._solve(lay, t, s, c)
-        self._start = False
         fr = self.frames
         saved = (fr.u.copy(), fr.t.copy(), fr.theta.copy(), fr.theta_end.copy())
         last = math.inf
+        self.solves = 1
         for k in range(self.newton_iterations + 1):
             change = _ga.alpha_point(self.a0, self.a_prev, self.v, c.alpha_f, c.beta, c.gamma, self.h, self._offset)
-            if change <= NEWTON_TOL * self._length_scale or k == self.newton_iterations:
+            if change <= NEWTON_TOL * self._length_scale:
                 break
-            if change > NEWTON_CONTRACTION * last:  # not converging: this step is Euler's
+            if k == self.newton_iterations and change <= NEWTON_ACCEPT * self._length_scale:
+                break  # close enough
+            if change > NEWTON_CONTRACTION * last or k == self.newton_iterations:
+                # not converging, or not in time: this step is Euler's
                 fr.u[:], fr.t[:], fr.theta[:], fr.theta_end[:] = saved
                 self._euler()
                 return
@@ -383,6 +402,7 @@ class GeneralizedAlpha(Implicit):
             evaluate(self.rods, fr, self._xp, lay.place, t, self.ends, self.xmat, MAX_STRAIN, self._bands,
                      self._band_of_rod)
             self._solve(lay, t, s, c)
+            self.solves += 1
         fr.u[:], fr.t[:], fr.theta[:], fr.theta_end[:] = saved
 
     def _euler(self) -> None:
@@ -398,11 +418,12 @@ class GeneralizedAlpha(Implicit):
         s.m_coef, s.s = _ga.alpha_step(
             t.band, t.grad, t.g_tw, t.coef, self.rod_tw, s.tw_lo, s.tw_hi, s.tw_c, lay.free_vertex, lay.free_body,
             lay.dofs, lay.mass, self.qvel, self.xfrc_applied, self.gravity, self.h, self.mass_damping,
-            self.stiffness_damping, c.alpha_m, c.alpha_f, c.beta, c.gamma, self._start, self.a_prev, self._offset,
+            self.stiffness_damping, c.alpha_m, c.alpha_f, c.beta, c.gamma, self.a_prev, self._offset,
             s.a_band, s.lt, s.g, s.z, s.den, self.v, self.other, self._rhs, self._kv, self._w, self.a0)
 
     def _contact(self, d: mujoco.MjData) -> np.ndarray | None:
         a = self.contact(d, self.system, self.a0)
+        self._touched = a is not None
         if a is None or self.euler_step:
             return a
         # A contact touches a rod: this step is backward Euler's, from the forces at x0.
@@ -414,7 +435,10 @@ class GeneralizedAlpha(Implicit):
 
     def _integrated(self, a: np.ndarray) -> None:
         if self.euler_step:
-            self._start = True  # the next step starts from the forces' acceleration
+            # Backward Euler's acceleration seeds the next step, unless a contact's impulse
+            # is in it: then the next step is Euler's too.
+            self.a_prev[:] = a
+            self._start = self._touched
             return
         c = self.coefficients
         _ga.finish_step(a, self.a_prev, c.beta, c.gamma, self.h, self.layout.qpos_adr, self.qpos)
