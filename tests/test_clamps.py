@@ -102,3 +102,22 @@ def test_naturally_curved_rod_keeps_its_shape():
     w.add_rod(derods.Rod(x, derods.Material(young=1e7)), start="clamp")
     w.step(100)
     np.testing.assert_allclose(w.positions(), x, atol=1e-9)
+
+
+@pytest.mark.parametrize("total", [1.0, 3.0, 5.0, 13.48])
+def test_a_clamp_held_by_a_body_keeps_an_imposed_twist(total):
+    """TwistBoundary("clamped", 0, Theta) with the far clamp on a body: the rod keeps
+    Theta, not the nearest multiple of 2 pi (it snapped 1.0 -> 0, 5.0 -> 2 pi, 13.48 ->
+    4 pi when the body carried the reference director instead of the material one).
+    Tolerance 1e-9 rad: round-off of the unwrapped angle."""
+    spec = mujoco.MjSpec()
+    b = spec.worldbody.add_body(name="holder", pos=[1.0, 0.0, 1.0], mocap=True)
+    b.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.02, 0, 0], contype=0, conaffinity=0)
+    w = World(spec, dt=1e-2, gravity=(0, 0, 0), mass_damping=5.0)
+    rod = derods.Rod(shapes.cantilever(1.0, 20, start=(0, 0, 1), clamped_ends=2), derods.Material(young=1e7),
+                     boundary=derods.TwistBoundary("clamped", 0.0, total))
+    w.add_rod(rod, "rod", start="clamp", end="clamp", end_body="holder")
+    w.compile()
+    w.step(50)
+    state = w.rod_state("rod")
+    assert state.theta[-1] - state.theta[0] == pytest.approx(total, abs=1e-9)

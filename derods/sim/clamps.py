@@ -13,6 +13,7 @@ with the forces of the step that computed them).
 
 from __future__ import annotations
 
+import math
 
 import mujoco
 import numpy as np
@@ -42,13 +43,14 @@ def twist_boundary(rod, start: str, end: str, name: str) -> TwistBoundary:
 
 
 def end_bodies(model: mujoco.MjModel, data: mujoco.MjData, entries: list[RodEntry], u: np.ndarray,
-               theta: np.ndarray, e_off: np.ndarray, theta_end: np.ndarray) -> EndBodies:
+               t: np.ndarray, theta: np.ndarray, e_off: np.ndarray, theta_end: np.ndarray) -> EndBodies:
     """Clamps held by moving bodies, at the start: each clamp's material director in its
     body's frame, and the unwrapped angles (theta_end (n_rods, 2), set here) it starts from.
 
-    u, theta: the rods' initial reference directors (n_edges, 3) and twist angles, flat
-    with edge offsets e_off. The material frame is taken to be the reference frame at the
-    start (the angle of the clamped edge is carried in theta_end).
+    u, t, theta: the rods' initial reference directors and tangents (n_edges, 3) and twist
+    angles [rad], flat with edge offsets e_off. The body carries the clamped edge's
+    material director, u turned by theta about t: an imposed end twist that is not a
+    multiple of 2 pi stays what it is (carrying u instead snapped it to one).
     """
     ends = EndBodies.none(len(entries))
     for i, e in enumerate(entries):
@@ -59,7 +61,8 @@ def end_bodies(model: mujoco.MjModel, data: mujoco.MjData, entries: list[RodEntr
             b = model.body(e.holder(key)).id
             edge = int(e_off[i]) if key == "start" else int(e_off[i + 1]) - 1
             ends.body[i, k] = b
-            ends.director[i, k] = data.xmat[b].reshape(3, 3).T @ u[edge]
+            m1 = math.cos(theta[edge]) * u[edge] + math.sin(theta[edge]) * np.cross(t[edge], u[edge])
+            ends.director[i, k] = data.xmat[b].reshape(3, 3).T @ m1
             theta_end[i, k] = theta[edge]
     return ends
 

@@ -243,7 +243,7 @@ class World:
             start = RodState(e.x0.copy(), frames.bishop_frames(e.x0, e.rod.closed, e.rod.u0), t, np.zeros(len(t)))
             states.append(e.rod.advance(start, e.x0))
         fr = Frames.of(states)
-        ends = end_bodies(model, data, self._entries, fr.u, fr.theta, rods.e_off, fr.theta_end)
+        ends = end_bodies(model, data, self._entries, fr.u, fr.t, fr.theta, rods.e_off, fr.theta_end)
         self.explicit_dt_limit = explicit_dt_limit(self._entries, layout, rods, fr, ends, data)
         h = model.opt.timestep
         if self.requested_mode == "auto":
