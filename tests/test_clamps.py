@@ -121,3 +121,26 @@ def test_a_clamp_held_by_a_body_keeps_an_imposed_twist(total):
     w.step(50)
     state = w.rod_state("rod")
     assert state.theta[-1] - state.theta[0] == pytest.approx(total, abs=1e-9)
+
+
+@pytest.mark.parametrize("mode", ["implicit", "alpha"])
+def test_clamp_reaction_carries_the_settled_rods_weight(mode):
+    """World.reaction: a settled cantilever pushes its clamp down with the weight of its
+    free vertices and twists it with their moment about the clamp point (the middle of the
+    clamped edge): the free vertices' balance, -grad = -m g at each, summed. Tolerance 1e-4
+    of the load's size: what settling leaves (no vertex faster than 1e-5 m/s)."""
+    mat = derods.Material(young=1e7)
+    w = rods.cantilever(mat, 20, mode=mode)
+    assert rods.settle(w, 1.0)
+    w.step()
+    x = w.positions("rod")
+    free = np.arange(2, len(x))
+    m = np.array([w.model.body_mass[w.vertex_body("rod", v)] for v in free])
+    weight = m[:, None] * np.array([0.0, 0.0, -9.81])
+    point = x[:2].mean(axis=0)
+    force, moment = w.reaction("rod", "start")
+    expected_force = weight.sum(axis=0)
+    expected_moment = np.cross(x[free] - point, weight).sum(axis=0)
+    np.testing.assert_allclose(force, expected_force, atol=1e-4 * np.linalg.norm(expected_force))
+    np.testing.assert_allclose(moment, expected_moment, atol=1e-4 * np.linalg.norm(expected_moment))
+    assert np.all(w.reaction("rod", "end")[0] == 0.0)  # a free end holds nothing

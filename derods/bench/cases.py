@@ -187,7 +187,16 @@ def cantilever(p: CaseParams, max_time: float = 30.0) -> list[dict]:
     wall = time.perf_counter() - t0
     settled = stable and np.max(np.abs(world.velocities())) < SETTLE_SPEED * p.length
     return [_record("cantilever", p, world, measured, ref, stable, wall, settled=bool(settled),
-                    note=note)]
+                    note=note, **_clamp_reaction(world, stable))]
+
+
+def _clamp_reaction(world, stable: bool) -> dict:
+    """What the rod puts on its clamp (derods' World.reaction: force [N] and moment [N m]
+    about the clamp point, world frame), for the record; nothing for a backend without it."""
+    if not stable or not hasattr(world, "reaction"):
+        return {}
+    force, moment = world.reaction(0, "start")
+    return {"clamp_force": force.tolist(), "clamp_moment": moment.tolist()}
 
 
 def frequency(p: CaseParams, periods: int = 4) -> list[dict]:

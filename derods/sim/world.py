@@ -384,6 +384,35 @@ class World:
             raise IndexError(f"vertex {vertex} out of range; rod {self.rod_names[i]!r} has {nv} vertices")
         return int(self._layout.body[self._layout.v_off[i] + vertex % nv])
 
+    def reaction(self, rod: int | str = 0, end: str = "start") -> tuple[np.ndarray, np.ndarray]:
+        """What a rod puts on the holder of one of its ends (the world or a body) in the
+        last step: the force [N], shape (3,), and the moment [N m], shape (3,), about the
+        point the end is held at (a pin's vertex; a clamp's: the middle of its edge), both
+        in world frame. A clamp's moment includes the twisting moment the rod resists with.
+        From the forces at the start of the step (in the alpha mode, at its last Newton
+        iterate). An end that is not held gets zeros.
+        """
+        self.compile()
+        if end not in ("start", "end"):
+            raise ValueError(f"end must be 'start' or 'end', got {end!r}")
+        i = self._index(rod)
+        e, lay = self._entries[i], self._layout
+        held = e.held(end)
+        force, moment = np.zeros(3), np.zeros(3)
+        if len(held) == 0:
+            return force, moment
+        terms, x = self._step.terms, self._step.x
+        v = lay.v_off[i] + held
+        point = x[v].mean(axis=0)
+        f = -terms.grad[v]
+        force = f.sum(axis=0)
+        moment = np.cross(x[v] - point, f).sum(axis=0)
+        if (e.start if end == "start" else e.end) == "clamp":
+            edges = self._edges(i)
+            edge = edges.start if end == "start" else edges.stop - 1
+            moment -= terms.end_moment[i, 0 if end == "start" else 1] * self._step.frames.t[edge]
+        return force, moment
+
     def contact_force(self, rod: int | str = 0) -> np.ndarray:
         """Contact (constraint) force [N] on each vertex in the last step, shape (n_vertices, 3).
 
