@@ -134,6 +134,23 @@ def hair(args: argparse.Namespace) -> int:
     return 0
 
 
+def edit(args: argparse.Namespace) -> int:
+    """``derods edit``: the rod editor in a browser (derods.editor.app)."""
+    try:
+        import viser  # noqa: F401
+    except ImportError:
+        raise ValueError("derods edit needs the browser editor's extra: pip install 'derods[ui]' "
+                         "(make demo and make test install it)") from None
+    from derods import scenes
+    from derods.editor import app
+
+    scenes.path(args.scene)  # an unknown scene is an error before a server starts
+    if not 0 <= args.port <= 65535:
+        raise ValueError(f"port must be in 0..65535, got {args.port}")
+    app.serve(args.scene, host=args.host, port=args.port)
+    return 0
+
+
 def view(args: argparse.Namespace) -> int:
     """``derods view``: the drop scene in MuJoCo's viewer; drag a rod with the mouse
     (double-click it, then Ctrl + right-drag) and the pull enters the implicit step."""
@@ -314,6 +331,13 @@ def main(argv: list[str] | None = None) -> int:
     c.add_argument("--full", action="store_true",
                    help="the sample report's sweep: accuracy, stability map, extreme cases")
     c.set_defaults(func=compare_cmd)
+
+    e = sub.add_parser("edit", help="shape a rod on Bezier curves and simulate it, in a browser (local web app)")
+    e.add_argument("--scene", default="floor", help="scene name or MJCF path the rod falls into (default floor)")
+    e.add_argument("--host", default="127.0.0.1",
+                   help="interface to listen on (default 127.0.0.1: this machine only; 0.0.0.0 exposes it)")
+    e.add_argument("--port", type=int, default=8080, help="port (default 8080; 0: any free one)")
+    e.set_defaults(func=edit)
 
     v = sub.add_parser("view", help="open a scene with rods in MuJoCo's interactive viewer")
     v.add_argument("--scene", default="box", help="scene name or MJCF path (default box)")
