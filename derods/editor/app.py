@@ -23,8 +23,6 @@ from .session import ENDS, RESTS, Session
 
 #: The simulation's frame period [s] (the drawing follows at this rate).
 FRAME = 1.0 / 30.0
-#: The spring [N/m] of a mouse pull, per kg of the rod.
-PULL_STIFFNESS = 400.0
 
 
 def colours(values: np.ndarray, top: float) -> np.ndarray:
@@ -281,9 +279,7 @@ class EditorApp:
                 s.release()
                 return
             k = int(event.instance_index)
-            mass = s.settings.material.line_density * s.curve.length
-            target = np.asarray(event.end_position, dtype=float)
-            s.pull(k, PULL_STIFFNESS * mass * (target - s.positions()[k]))
+            s.pull(k, np.asarray(event.end_position, dtype=float))
 
     def _update_gizmos(self, show: bool) -> None:
         p = self.session.curve.points if show else np.zeros((0, 3))

@@ -1,0 +1,158 @@
+"""The editor's page driven in a real headless browser (Debian's chromium through
+playwright): what a user's mouse and keyboard do reaches the Session, and the page shows
+it. Marked ``browser``: skipped where chromium or playwright is missing (plain ``make
+test`` on a desktop), required in CI (``.ci/run`` installs chromium first).
+
+Screen positions come from the browser's own camera (reported back to viser), projected
+with OpenCV's pinhole model."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import time
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.browser
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+if not CHROMIUM or not shutil.which("true"):
+    if os.environ.get("CI"):
+        raise RuntimeError("CI needs Debian's chromium for the browser tests: .ci/run installs it (apt-get)")
+    pytest.skip("no chromium here (apt-get install chromium)", allow_module_level=True)
+sync_api = pytest.importorskip("playwright.sync_api")
+viser_tf = pytest.importorskip("viser.transforms")
+
+from derods.editor.app import EditorApp  # noqa: E402
+from derods.editor.session import Session, Settings  # noqa: E402
+
+#: Software WebGL on 2 cores: a page takes 10-17 s to come up, a screenshot up to 30 s.
+TIMEOUT_MS = 90_000
+ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--disable-background-networking",
+        "--disable-component-update", "--disable-sync", "--no-first-run"]
+
+
+@pytest.fixture(scope="module")
+def ui():
+    app = EditorApp(Session("box", settings=Settings(n_edges=20, dt=5e-3)), port=0)
+    with sync_api.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
+        page = browser.new_page(viewport={"width": 1280, "height": 800})
+        page.set_default_timeout(TIMEOUT_MS)
+        page.goto(app.url)
+        page.get_by_text("Connected").wait_for()
+        assert wait_for(lambda: len(app.server.get_clients()) == 1 and _camera(app) is not None)
+        yield app, page
+        browser.close()
+    app.stop()
+
+
+def wait_for(condition, seconds: float = 30.0) -> bool:
+    end = time.time() + seconds
+    while time.time() < end:
+        if condition():
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def _camera(app):
+    cam = next(iter(app.server.get_clients().values())).camera
+    try:
+        cam.wxyz
+    except AssertionError:  # no camera report from the browser yet
+        return None
+    return cam
+
+
+def screen(app, point) -> tuple[float, float]:
+    """Where the browser draws a world point [m], in page pixels."""
+    cam = _camera(app)
+    rot = viser_tf.SO3(np.asarray(cam.wxyz)).as_matrix()  # camera to world, OpenCV axes
+    q = rot.T @ (np.asarray(point, dtype=float) - np.asarray(cam.position))
+    f = 0.5 * cam.image_height / np.tan(0.5 * cam.fov)
+    return 0.5 * cam.image_width + f * q[0] / q[2], 0.5 * cam.image_height + f * q[1] / q[2]
+
+
+def drag(page, start, moves) -> None:
+    page.mouse.move(*start)
+    page.mouse.down()
+    for m in moves:
+        page.mouse.move(*m)
+        time.sleep(0.05)
+    page.mouse.up()
+
+
+def test_the_samples_box_changes_the_rod_drawn(ui):
+    app, page = ui
+    box = page.locator("input[type=text]").first  # the Samples slider's number box
+    assert box.input_value() == "20"
+    box.fill("33")
+    box.press("Enter")
+    assert wait_for(lambda: app.session.settings.n_edges == 33)
+    assert wait_for(lambda: app._nodes["/curve/rod"].points.shape[0] == 33)
+
+
+def test_dragging_a_handle_moves_it_and_keeps_the_c1_join_smooth(ui):
+    """A left-drag on the x arrow of handle 2's gizmo (3 cm along +x from its centre)."""
+    app, page = ui
+    before = app.session.curve.points.copy()
+    u, v = screen(app, before[2] + (0.03, 0.0, 0.0))
+    drag(page, (u, v), [(u + 8 * j, v) for j in range(1, 6)])
+    assert wait_for(lambda: app.session.curve.points[2, 0] > before[2, 0] + 0.02)
+    p = app.session.curve.points
+    np.testing.assert_allclose(p[2, 1:], before[2, 1:], atol=1e-9)  # along x only
+    np.testing.assert_allclose(p[4], 2 * p[3] - p[2], atol=1e-12)  # the C1 join followed
+
+
+def test_start_pause_reset(ui):
+    app, page = ui
+    drawn = app.session.samples()
+    page.get_by_role("button", name="Start").click()
+    assert wait_for(lambda: app.session.sim_time > 1.0)
+    assert np.abs(app.session.positions() - drawn).max() > 0.1  # it fell onto the box
+    page.get_by_role("button", name="Pause").click()
+    assert wait_for(lambda: not app.session.running)
+    t = app.session.sim_time
+    time.sleep(0.5)
+    assert app.session.sim_time == t  # Pause stops time
+    page.get_by_role("button", name="Reset").click()
+    assert wait_for(lambda: app.session.world is None)
+    np.testing.assert_array_equal(app.session.positions(), drawn)
+
+
+def test_a_pull_lifts_the_rod(ui):
+    app, page = ui
+    page.get_by_role("button", name="Start").click()
+    assert wait_for(lambda: app.session.sim_time > 1.0)
+    k = app.session.settings.n_edges // 2
+    resting = app.session.positions()[k].copy()
+    u, v = screen(app, resting)
+    page.mouse.move(u, v)
+    page.mouse.down()
+    for j in range(1, 11):
+        page.mouse.move(u, v - 15 * j)
+        time.sleep(0.1)
+    lifted = wait_for(lambda: app.session.positions()[k, 2] > resting[2] + 0.1, 10.0)
+    page.screenshot(path=str(SHOT))
+    page.mouse.up()
+    assert lifted
+    assert wait_for(lambda: app.session._pull is None)
+
+
+SHOT = __import__("pathlib").Path(os.environ.get("TMPDIR", "/tmp")) / "derods_edit_pull.png"
+
+
+def test_the_page_shows_the_scene_and_the_strain_coloured_rod(ui):
+    """The screenshot of the pull, in the 3D view (right of the software-WebGL notice, left
+    of the panel): the box's blue faces (greyish blue, unsaturated: measured 8979 pixels)
+    and the rod bent red where the pull bends it most (measured 97 pixels of r - b > 80)."""
+    from PIL import Image
+
+    img = np.asarray(Image.open(SHOT).convert("RGB")).astype(int)[160:, 320:900]
+    r, g, b = img[..., 0], img[..., 1], img[..., 2]
+    saturation = img.max(axis=-1) - img.min(axis=-1)
+    box = (b - r > 30) & (saturation < 90) & (b > 90)
+    assert box.sum() > 4000
+    assert (r - b > 80).sum() > 30
