@@ -21,8 +21,10 @@ import numpy as np
 
 from .session import ENDS, RESTS, Session
 
-#: The simulation's frame period [s] (the drawing follows at this rate).
+#: The simulation's frame period [s] (the drawing follows at this rate), and how many
+#: frames of simulated time it catches up at most when it falls behind the wall clock.
 FRAME = 1.0 / 30.0
+MAX_BEHIND = 3
 
 
 def colours(values: np.ndarray, top: float) -> np.ndarray:
@@ -111,6 +113,8 @@ class EditorApp:
         with gui.add_folder("Curve"):
             self.samples = gui.add_slider("Samples", min=4, max=200, step=1, initial_value=st.n_edges)
             self.frames_box = gui.add_checkbox("Bishop frames", initial_value=True)
+            self.colour_by = gui.add_dropdown("colour by", ("curvature", "torsion"), initial_value="curvature")
+            self.legend = gui.add_markdown("")
             self.joins_group = gui.add_folder("Joins")
             self.add_seg = gui.add_button("Add segment")
             self.remove_seg = gui.add_button("Remove last segment")
@@ -166,6 +170,7 @@ class EditorApp:
         s = self.session
         self.samples.on_update(self._act(lambda: s.set_settings(n_edges=int(self.samples.value))))
         self.frames_box.on_update(self._act(lambda: None))
+        self.colour_by.on_update(self._act(lambda: None))
         self.add_seg.on_click(self._act(s.add_segment))
         self.remove_seg.on_click(self._act(lambda: s.remove_segment(s.curve.n_segments - 1)))
         for handle, key, conv in ((self.young, "young", float), (self.radius, "radius", float),
@@ -213,8 +218,13 @@ class EditorApp:
                 p = s.curve.points
                 self._put(scene.add_line_segments("/curve/polygon", _segments(p), (150, 150, 150), thickness=0.002))
                 arc, kappa, tau = s.curvature_torsion()
-                edge_k = 0.5 * (kappa[:-1] + kappa[1:])
-                c = colours(edge_k, max(float(kappa.max()), 1e-9))
+                field = kappa if self.colour_by.value == "curvature" else np.abs(tau)
+                top = max(float(field.max()), 1e-9)
+                c = colours(0.5 * (field[:-1] + field[1:]), top)
+                self.legend.content = (f"<span style='color:#285ae6'>&#9632;</span> 0 &nbsp; "
+                                       f"<span style='color:#28c85a'>&#9632;</span> {top / 2:.3g} &nbsp; "
+                                       f"<span style='color:#e63228'>&#9632;</span> {top:.3g} 1/m "
+                                       f"({'|torsion|' if self.colour_by.value == 'torsion' else 'curvature'})")
                 self._put(scene.add_line_segments("/curve/rod", _segments(x), np.repeat(c[:, None], 2, axis=1),
                                                   thickness=2 * s.settings.radius))
                 self.plot.data = (arc, kappa, tau)
@@ -258,8 +268,8 @@ class EditorApp:
             self._grab_n = len(x)
             ico = _icosphere()
             self._grab = self._put(self.server.scene.add_batched_meshes_simple(
-                "/sim/grab", ico[0] * 1.5 * s.settings.radius, ico[1], np.tile([1.0, 0, 0, 0], (len(x), 1)), x,
-                batched_colors=(250, 250, 250), batched_opacities=np.full(len(x), 0.4)))
+                "/sim/grab", ico[0] * max(2.5 * s.settings.radius, 0.01), ico[1], np.tile([1.0, 0, 0, 0], (len(x), 1)), x,
+                batched_colors=(250, 250, 250), batched_opacities=np.full(len(x), 0.08)))
             self._grab.on_drag(self._on_pull)
         else:
             self._grab.batched_positions = x
@@ -281,6 +291,34 @@ class EditorApp:
             k = int(event.instance_index)
             s.pull(k, np.asarray(event.end_position, dtype=float))
 
+    def _update_points(self, show: bool) -> None:
+        """The control points as spheres that a left-drag moves (on a camera-facing plane),
+        beside their gizmos (which move them along an axis or a plane)."""
+        p = self.session.curve.points
+        if not show:
+            self._remove("/points/spheres")
+            return
+        ico = _icosphere()
+        colours_ = np.array([(30, 30, 30) if i % 3 == 0 else (120, 120, 120) for i in range(len(p))], dtype=np.uint8)
+        handle = self._nodes.get("/points/spheres")
+        if handle is not None and len(handle.batched_positions) == len(p):
+            handle.batched_positions = p
+            return
+        handle = self._put(self.server.scene.add_batched_meshes_simple(
+            "/points/spheres", ico[0] * 0.012, ico[1], np.tile([1.0, 0, 0, 0], (len(p), 1)), p,
+            batched_colors=colours_))
+        handle.on_drag(self._on_point_drag)
+
+    def _on_point_drag(self, event) -> None:
+        with self.lock:
+            if self.session.world is not None or event.instance_index is None or event.phase == "start":
+                return
+            try:
+                self.session.move_point(int(event.instance_index), np.asarray(event.end_position, dtype=float))
+            except ValueError as err:
+                self.file_status.content = f"**{err}**"
+            self.redraw()
+
     def _update_gizmos(self, show: bool) -> None:
         p = self.session.curve.points if show else np.zeros((0, 3))
         while len(self._gizmos) > len(p):
@@ -293,6 +331,7 @@ class EditorApp:
                                                          position=q)
             g.on_update(self._gizmo_moved(i, g))
             self._gizmos.append(g)
+        self._update_points(show)
 
     def _gizmo_moved(self, i: int, handle):
         def callback(_event):
@@ -332,16 +371,28 @@ class EditorApp:
 
     # -- the simulation thread --------------------------------------------------------------
     def _loop(self) -> None:
+        """Keep the simulated time on the wall clock while running (at most MAX_BEHIND
+        frames of catching up at once), drawing once per frame."""
+        paced = None  # (wall, sim) when the run (re)started
         while self._alive:
             t0 = time.perf_counter()
             with self.lock:
-                if self.session.running:
+                s = self.session
+                if s.running and s.world is not None:
+                    if paced is None:
+                        paced = (t0, s.sim_time)
+                    behind = (t0 - paced[0]) - (s.sim_time - paced[1])
+                    if behind > MAX_BEHIND * FRAME:  # too slow for real time: stop trying to catch up
+                        paced = (t0 - MAX_BEHIND * FRAME, s.sim_time)
+                        behind = MAX_BEHIND * FRAME
                     try:
-                        self.session.advance(FRAME)
+                        s.advance(max(behind, 0.0))
                     except Exception as err:  # a diverged rod: stop, say why
-                        self.session.pause()
+                        s.pause()
                         self.file_status.content = f"**{err}**"
                     self.redraw()
+                else:
+                    paced = None
             time.sleep(max(0.0, FRAME - (time.perf_counter() - t0)))
 
 

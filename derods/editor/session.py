@@ -191,11 +191,13 @@ class Session:
             self._step_pulled(n_steps)
 
     def advance(self, wall_seconds: float) -> int:
-        """While running: the steps that keep up with ``wall_seconds`` of real time (at
-        most that many seconds' worth), timed; returns the steps made."""
+        """While running: the steps that cover ``wall_seconds`` of simulated time (rounded
+        down; none if less than a step), timed; returns the steps made."""
         if not self.running or self.world is None:
             return 0
-        n = max(1, int(round(wall_seconds / self.world.model.opt.timestep)))
+        n = int(wall_seconds / self.world.model.opt.timestep + 1e-9)
+        if n == 0:
+            return 0
         t0 = time.perf_counter()
         self.step(n)
         wall = time.perf_counter() - t0
