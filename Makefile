@@ -10,7 +10,7 @@ STAMP317 := $(VENV317)/.installed
 VENVEL := .venv-elastica
 STAMPEL := $(VENVEL)/.installed
 
-.PHONY: demo core-demo test test317 test-elastica venv317 venv-elastica bench report docs-images clean clean-cache
+.PHONY: demo core-demo test test317 test-elastica venv317 venv-elastica bench report docs-images docs-editor clean clean-cache
 
 $(STAMP): pyproject.toml
 	@echo "make: creating $(VENV) and installing derods with numpy, scipy, mujoco, numba (a minute or two)"
@@ -75,6 +75,10 @@ report: $(STAMP) $(STAMP317) $(STAMPEL)
 # The README's pictures of the scenes and of the render quality.
 docs-images: $(STAMP)
 	$(VENV)/bin/python docs/images.py
+
+# The README's screenshots of the browser editor (needs Debian's chromium).
+docs-editor: $(STAMP)
+	$(VENV)/bin/python docs/editor_images.py
 
 # numba's on-disk cache is keyed per source file: clear it after editing a kernel that others call.
 clean-cache:

@@ -9,7 +9,6 @@ import math
 import numpy as np
 import pytest
 
-from derods.editor.curve import Curve
 from derods.editor.session import Session, Settings
 
 
@@ -113,3 +112,12 @@ def test_bad_settings_name_the_parameter():
         Settings(start="glue")
     with pytest.raises(TypeError):
         Session().set_settings(colour="red")
+
+
+def test_export_films_the_rod(tmp_path):
+    """An MP4 of the rod falling from the edited curve, through the video path."""
+    s = Session(settings=Settings(n_edges=12, dt=5e-3))
+    info = s.export(tmp_path / "rod.mp4", seconds=0.2, width=320, height=180)
+    assert info["frames"] == 7
+    assert (tmp_path / "rod.mp4").stat().st_size > 1000
+    assert s.world is None  # the session's own state is untouched

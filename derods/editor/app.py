@@ -192,12 +192,9 @@ class EditorApp:
         self.export_btn.on_click(self._act(self._export))
 
     def _export(self) -> None:
-        from ..viz import render
-
         out = pathlib.Path(self.path.value).with_suffix(".mp4")
-        world = self.session.world or self.session.build()
-        render.film(world, out, 5.0, 30.0, 960, 540, progress=False)
-        self.file_status.content = f"wrote {out}"
+        info = self.session.export(out)
+        self.file_status.content = f"wrote {out} ({info['frames']} frames)"
 
     # -- drawing ----------------------------------------------------------------------------
     def redraw(self) -> None:

@@ -286,6 +286,21 @@ class Session:
         world.set_positions("rod", xp)
         return world
 
+    def export(self, path, seconds: float = 5.0, width: int = 960, height: int = 540) -> dict:
+        """Film the rod for ``seconds`` [s] from where it is (the edited curve if no world
+        runs) to an MP4 at ``path``, through :func:`derods.viz.render.film` (headless,
+        written atomically); the session's own world is not advanced."""
+        from ..viz import render
+
+        world = self.build()
+        if self.world is not None:  # start the film from the running rod's state
+            world.set_positions("rod", self.world.positions("rod"))
+            world.set_velocities("rod", self.world.velocities("rod"))
+        render.check_frame_size(world.model, width, height)
+        names = {world.model.camera(i).name for i in range(world.model.ncam)}
+        return render.film(world, path, seconds, 30.0, width, height, "main" if "main" in names else None,
+                           progress=False)
+
     # -- files ------------------------------------------------------------------------------
     def to_dict(self) -> dict:
         return {"format": "derods-edit/1", "curve": self.curve.to_dict(),
