@@ -72,6 +72,21 @@ def wait_for(condition, seconds: float = 30.0) -> bool:
     return False
 
 
+def wait_stable(value, quiet: float = 0.5, seconds: float = 30.0) -> bool:
+    """Wait until value() has not changed for ``quiet`` seconds (a drag's last events
+    arrive after the mouse is up)."""
+    end = time.time() + seconds
+    last, since = value(), time.time()
+    while time.time() < end:
+        time.sleep(0.05)
+        now = value()
+        if not np.array_equal(now, last):
+            last, since = now, time.time()
+        elif time.time() - since >= quiet:
+            return True
+    return False
+
+
 def _camera(app):
     cam = next(iter(app.server.get_clients().values())).camera
     try:
@@ -116,6 +131,7 @@ def test_dragging_a_handle_moves_it_and_keeps_the_c1_join_smooth(ui):
     u, v = screen(app, before[2] + (0.03, 0.0, 0.0))
     drag(page, (u, v), [(u + 8 * j, v) for j in range(1, 6)])
     assert wait_for(lambda: app.session.curve.points[2, 0] > before[2, 0] + 0.02)
+    assert wait_stable(lambda: app.session.curve.points.copy())
     p = app.session.curve.points
     np.testing.assert_allclose(p[2, 1:], before[2, 1:], atol=1e-9)  # along x only
     np.testing.assert_allclose(p[4], 2 * p[3] - p[2], atol=1e-12)  # the C1 join followed
@@ -123,6 +139,7 @@ def test_dragging_a_handle_moves_it_and_keeps_the_c1_join_smooth(ui):
 
 def test_start_pause_reset(ui):
     app, page = ui
+    assert wait_stable(lambda: app.session.curve.points.copy())
     drawn = app.session.samples()
     page.get_by_role("button", name="Start").click()
     assert wait_for(lambda: app.session.sim_time > 1.0)
@@ -192,6 +209,7 @@ def test_dragging_a_control_point_sphere_moves_it(ui):
     u, v = screen(app, before)
     drag(page, (u, v), [(u, v - 10 * j) for j in range(1, 6)])
     assert wait_for(lambda: np.linalg.norm(app.session.curve.points[6] - before) > 0.02)
+    assert wait_stable(lambda: app.session.curve.points.copy())
 
 
 def test_forty_edges_on_the_box_keep_real_time_with_the_page_open(ui):
@@ -215,3 +233,23 @@ def test_forty_edges_on_the_box_keep_real_time_with_the_page_open(ui):
     print(f"real-time factor with the page open: {factor:.3f} (compute alone: {app.session.real_time_factor:.1f}x)")
     assert factor >= 0.98
     page.get_by_role("button", name="Pause").click()
+
+
+def test_save_load_and_export_from_the_page(ui, tmp_path):
+    app, page = ui
+    page.get_by_role("button", name="Reset").click()
+    assert wait_for(lambda: app.session.world is None)
+    box = next(b for b in page.locator("input").all() if b.input_value() == "rod.json")
+    box.fill(str(tmp_path / "edited.json"))
+    box.press("Enter")
+    assert wait_for(lambda: app.path.value == str(tmp_path / "edited.json"))
+    page.get_by_role("button", name="Save").click()
+    assert wait_for(lambda: (tmp_path / "edited.json").exists())
+    saved = app.session.curve.points.copy()
+    with app.lock:
+        app.session.move_point(0, [-0.5, 0.1, 0.4])
+    page.get_by_role("button", name="Load").click()
+    assert wait_for(lambda: np.array_equal(app.session.curve.points, saved))
+    page.get_by_role("button", name="Export MP4 (5 s)").click()  # 151 frames at 640 x 360
+    assert wait_for(lambda: "wrote" in app.file_status.content, 120.0), app.file_status.content
+    assert (tmp_path / "edited.mp4").stat().st_size > 10_000

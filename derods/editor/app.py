@@ -159,8 +159,8 @@ class EditorApp:
         def callback(_event=None):
             with self.lock:
                 try:
-                    fn()
                     self.file_status.content = ""
+                    fn()
                 except (ValueError, RuntimeError, IndexError, OSError) as err:
                     self.file_status.content = f"**{err}**"
                 self.redraw()
@@ -193,7 +193,7 @@ class EditorApp:
 
     def _export(self) -> None:
         out = pathlib.Path(self.path.value).with_suffix(".mp4")
-        info = self.session.export(out)
+        info = self.session.export(out, width=640, height=360)
         self.file_status.content = f"wrote {out} ({info['frames']} frames)"
 
     # -- drawing ----------------------------------------------------------------------------
