@@ -57,6 +57,8 @@ class EditorApp:
         self.server.initial_camera.up = (0.0, 0.0, 1.0)
         self._gizmos: list = []
         self._nodes: dict = {}
+        #: Simulated over wall time since the run (re)started (shown while running).
+        self.pace: float | None = None
         self._scene_geoms()
         self._widgets()
         self.redraw()
@@ -234,8 +236,9 @@ class EditorApp:
         else:
             self._remove("/curve")
             self._draw_rod(x)
-            self.status.content = (f"{'running' if s.running else 'paused'}: t = {s.sim_time:.2f} s, "
-                                   f"real-time factor {s.real_time_factor:.2f}")
+            pace = f"{self.pace:.2f}x real time, " if s.running and self.pace is not None else ""
+            self.status.content = (f"{'running' if s.running else 'paused'}: t = {s.sim_time:.2f} s, {pace}"
+                                   f"compute {s.real_time_factor:.1f}x real time")
 
     def _draw_frames(self, x: np.ndarray, u: np.ndarray, v: np.ndarray, name: str) -> None:
         if not self.frames_box.value:
@@ -378,6 +381,8 @@ class EditorApp:
                 if s.running and s.world is not None:
                     if paced is None:
                         paced = (t0, s.sim_time)
+                    if t0 - paced[0] > 0.5:
+                        self.pace = (s.sim_time - paced[1]) / (t0 - paced[0])
                     behind = (t0 - paced[0]) - (s.sim_time - paced[1])
                     if behind > MAX_BEHIND * FRAME:  # too slow for real time: stop trying to catch up
                         paced = (t0 - MAX_BEHIND * FRAME, s.sim_time)
@@ -389,7 +394,7 @@ class EditorApp:
                         self.file_status.content = f"**{err}**"
                     self.redraw()
                 else:
-                    paced = None
+                    paced, self.pace = None, None
             time.sleep(max(0.0, FRAME - (time.perf_counter() - t0)))
 
 
