@@ -130,7 +130,7 @@ def bezier_control_points(control_points, continuity: str = "C1") -> np.ndarray:
 
 
 def bezier_eval(control_points: np.ndarray, u: np.ndarray, derivative: int = 0) -> np.ndarray:
-    """Point (or first derivative) of a composite cubic Bezier curve.
+    """Point (or derivative of order 1-3) of a composite cubic Bezier curve.
 
     control_points: shape (3k + 1, 3). u: curve parameter in [0, k], segment
     s covering [s, s + 1], any shape. Returns shape u.shape + (3,).
@@ -145,7 +145,11 @@ def bezier_eval(control_points: np.ndarray, u: np.ndarray, derivative: int = 0) 
         return (1 - w) ** 3 * p0 + 3 * (1 - w) ** 2 * w * p1 + 3 * (1 - w) * w**2 * p2 + w**3 * p3
     if derivative == 1:
         return 3 * ((1 - w) ** 2 * (p1 - p0) + 2 * (1 - w) * w * (p2 - p1) + w**2 * (p3 - p2))
-    raise ValueError(f"derivative must be 0 or 1, got {derivative!r}")
+    if derivative == 2:
+        return 6 * ((1 - w) * (p2 - 2 * p1 + p0) + w * (p3 - 2 * p2 + p1))
+    if derivative == 3:
+        return 6 * (p3 - 3 * p2 + 3 * p1 - p0) + 0 * w
+    raise ValueError(f"derivative must be 0, 1, 2 or 3, got {derivative!r}")
 
 
 def bezier(control_points, n_edges: int, continuity: str = "C1") -> np.ndarray:

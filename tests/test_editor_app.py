@@ -22,7 +22,8 @@ def app():
     a.stop()
 
 
-def wait_for(condition, seconds=10.0):
+def wait_for(condition, seconds: float = 30.0) -> bool:
+    """Poll condition() every 50 ms until it holds (True) or ``seconds`` pass (False)."""
     end = time.time() + seconds
     while time.time() < end:
         if condition():

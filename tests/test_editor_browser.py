@@ -26,6 +26,7 @@ viser_tf = pytest.importorskip("viser.transforms")
 
 from derods.editor.app import EditorApp  # noqa: E402
 from derods.editor.session import Session, Settings  # noqa: E402
+from test_editor_app import wait_for  # noqa: E402
 
 #: Software WebGL on 2 cores: a page takes 10-17 s to come up, a screenshot up to 30 s.
 TIMEOUT_MS = 90_000
@@ -61,15 +62,6 @@ def home_camera(ui):
         cam.position = home  # before look_at: setting the position moves look_at too
         cam.look_at = look
         assert wait_for(lambda: np.allclose(_camera(app).position, home, atol=1e-4))
-
-
-def wait_for(condition, seconds: float = 30.0) -> bool:
-    end = time.time() + seconds
-    while time.time() < end:
-        if condition():
-            return True
-        time.sleep(0.05)
-    return False
 
 
 def wait_stable(value, quiet: float = 0.5, seconds: float = 30.0) -> bool:

@@ -128,21 +128,7 @@ class Curve:
     def evaluate(self, u, derivative: int = 0) -> np.ndarray:
         """Point or derivative (order 0-3) at curve parameters u in [0, k] (segment s on
         [s, s + 1]); shape u.shape + (3,) [m per unit parameter^order]."""
-        p = self.points
-        k = self.n_segments
-        u = np.asarray(u, dtype=float)
-        s = np.clip(np.floor(u).astype(int), 0, k - 1)
-        w = (u - s)[..., None]
-        p0, p1, p2, p3 = (p[3 * s + i] for i in range(4))
-        if derivative == 0:
-            return (1 - w) ** 3 * p0 + 3 * (1 - w) ** 2 * w * p1 + 3 * (1 - w) * w**2 * p2 + w**3 * p3
-        if derivative == 1:
-            return 3 * ((1 - w) ** 2 * (p1 - p0) + 2 * (1 - w) * w * (p2 - p1) + w**2 * (p3 - p2))
-        if derivative == 2:
-            return 6 * ((1 - w) * (p2 - 2 * p1 + p0) + w * (p3 - 2 * p2 + p1))
-        if derivative == 3:
-            return 6 * (p3 - 3 * p2 + 3 * p1 - p0) + 0 * w
-        raise ValueError(f"derivative must be 0, 1, 2 or 3, got {derivative!r}")
+        return shapes.bezier_eval(self.points, u, derivative)
 
     def arc_table(self) -> tuple[np.ndarray, np.ndarray]:
         """(u, s): curve parameters of a dense polyline (DENSE per segment) and the arc
