@@ -363,7 +363,7 @@ def main(argv: list[str] | None = None) -> int:
 
     b = sub.add_parser("bench", help="run a benchmark case and print one record per run")
     b.add_argument("case", choices=["cantilever", "frequency", "drop", "michell", "circle", "twist", "stability",
-                                     "extreme", "oscillation", "hair"])
+                                     "extreme", "oscillation", "coupling", "hair"])
     b.add_argument("--backend", default="der", choices=["der", "flex", "cable", "elastica"],
                    help="der (default), flex (MuJoCo's 1D flexcomp), cable (MuJoCo 3.x: .venv317), "
                         "elastica (PyElastica: .venv-elastica)")

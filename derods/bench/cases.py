@@ -58,11 +58,12 @@ from .backends import RodSimulator
 
 #: The derods modes a case can run in (a World's, without "auto").
 DER_MODES = tuple(m for m in _WORLD_MODES if m != "auto")
-CASES = ("cantilever", "frequency", "drop", "michell", "circle", "twist", "stability", "extreme", "oscillation")
+CASES = ("cantilever", "frequency", "drop", "michell", "circle", "twist", "stability", "extreme", "oscillation",
+         "coupling")
 BACKENDS = tuple(_BACKENDS)
 #: Cases each backend can run.
 BACKEND_CASES = {"der": ("cantilever", "frequency", "drop", "michell", "circle", "twist", "stability",
-                         "extreme", "oscillation"),
+                         "extreme", "oscillation", "coupling"),
                  "flex": ("cantilever", "frequency", "drop", "circle", "stability", "extreme", "oscillation")
                  + (("michell",) if native.has_flex_twist() else ()),
                  "cable": ("cantilever", "frequency", "michell", "circle", "drop", "stability", "extreme",
@@ -633,9 +634,15 @@ def _closest_approach(x: np.ndarray, spacing: float, samples: int = 8) -> float:
     return float(dist[sep > 3 * spacing].min())
 
 
+def _coupling(p: CaseParams) -> list[dict]:
+    from .coupling import coupling
+
+    return coupling(p)
+
+
 RUNNERS = {"cantilever": cantilever, "frequency": frequency, "drop": drop, "michell": michell,
            "circle": circle, "twist": twist, "stability": stability, "extreme": extreme,
-           "oscillation": oscillation}
+           "oscillation": oscillation, "coupling": _coupling}
 
 
 def run(case: str, params: CaseParams) -> list[dict]:
@@ -667,6 +674,8 @@ def format_record(rec: dict) -> str:
         parts.append(f"{rec['scene']} tilt {rec['tilt']:g}")
     if "variant" in rec:
         parts.append(rec["variant"] + (f": {rec['outcome']}" if "outcome" in rec else ""))
+    if "mass_ratio" in rec:
+        parts.append(f"body {rec['mass_ratio']:g} x the rod's mass")
     parts.append(f"n={rec['n_edges']} dt={rec['dt']:g} E={rec['young']:.3g} {rec['mode']}")
     if not rec["stable"]:
         parts.append(f"UNSTABLE: {rec['note']}")

@@ -1,0 +1,119 @@
+"""Bench case ``coupling``: a rod holding a free body, against the closed form.
+
+A cantilever (clamped at (0, 0, 1) m along +x, no gravity) carries a free body (a small
+sphere on a free joint) pinned to its tip; the body's mass is swept over ``MASS_RATIOS``
+times the rod's. Started from the static tip-load shape (tip 1 % of L up), the pair
+swings in its first mode, whose frequency is Euler-Bernoulli's for a beam with a tip
+mass: beta L is the smallest root of
+
+    1 + cos(bL) cosh(bL) + mu bL (cos(bL) sinh(bL) - sin(bL) cosh(bL)) = 0,   mu = m / (rho A L),
+
+f = (bL)^2 / (2 pi) sqrt(alpha / (rho A L^4)) (mu = 0: the bare cantilever's 1.8751).
+The record per mass: ``measured`` the frequency from the tip's zero crossings,
+``reference`` the closed form, ``stable``. It measures how the rod's force reaches the
+body: today explicitly (one step late, :class:`derods.sim.clamps.Reactions`), which a
+light body does not survive at large steps.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import mujoco
+import numpy as np
+from scipy.optimize import brentq
+
+from .. import shapes
+from ..rod import Rod
+from ..sim.divergence import DivergenceError
+from ..sim.world import World
+
+#: Body mass over rod mass.
+MASS_RATIOS = (1e-3, 1e-2, 1e-1, 1.0, 10.0, 100.0, 1000.0)
+#: The body: a sphere of this radius [m] (no collisions).
+BOB_RADIUS = 0.01
+
+
+def tip_mass_root(mu: float) -> float:
+    """beta L of the first mode of a clamped-free beam with a tip mass mu times its own."""
+    def f(b):
+        return 1.0 + math.cos(b) * math.cosh(b) + mu * b * (math.cos(b) * math.sinh(b) - math.sin(b) * math.cosh(b))
+
+    # the root falls from 1.8751 (mu = 0) towards 0 as (3 / mu)^(1/4); bracket below the first
+    hi = 1.8751040687 + 1e-9
+    lo = min(1.0, 0.5 * (3.0 / max(mu, 1e-12)) ** 0.25)
+    while f(lo) * f(hi) > 0:
+        lo *= 0.5
+    return brentq(f, lo, hi, xtol=1e-14)
+
+
+def tip_mass_frequency(alpha: float, line_density: float, length: float, mu: float) -> float:
+    """First bending frequency [Hz] of a cantilever with a tip mass mu times its own."""
+    b = tip_mass_root(mu)
+    return b * b / (2.0 * math.pi) * math.sqrt(alpha / (line_density * length**4))
+
+
+def held_world(p, mass: float) -> World:
+    """The cantilever of ``p`` with a free body of ``mass`` [kg] pinned to its tip."""
+    x = shapes.cantilever(p.length, p.n_edges, start=(0.0, 0.0, 1.0))
+    spec = mujoco.MjSpec()
+    bob = spec.worldbody.add_body(name="bob", pos=x[-1])
+    bob.add_freejoint()
+    bob.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[BOB_RADIUS, 0, 0], mass=mass, contype=0,
+                 conaffinity=0)
+    world = World(spec, dt=p.dt, gravity=(0.0, 0.0, 0.0), mode=p.mode)
+    world.add_rod(Rod(x, p.material), "rod", start="clamp", end="pin", end_body="bob")
+    world.compile()
+    return world
+
+
+def _bend(world: World, x: np.ndarray, length: float) -> None:
+    """The static tip-load shape w ~ s^2 (3 L - s), tip 1 % of L up, body moved along."""
+    s = np.clip(x[:, 0], 0.0, None)
+    shape = s**2 * (3 * length - s)
+    bent = x.copy()
+    bent[:, 2] += 0.01 * length * shape / shape[-1]
+    bent[:2] = x[:2]  # the clamped edge stays
+    m, d = world.model, world.data
+    adr = m.jnt_qposadr[m.body("bob").jntadr[0]]
+    d.qpos[adr:adr + 3] = bent[-1]
+    mujoco.mj_kinematics(m, d)
+    world.set_positions("rod", bent)
+
+
+def coupling(p, periods: float = 3.0) -> list[dict]:
+    """One record per body mass in MASS_RATIOS (see the module docstring)."""
+    from .cases import _record  # the harness's record layout
+
+    mat = p.material
+    rod_mass = mat.line_density * p.length
+    out = []
+    for mu in MASS_RATIOS:
+        ref = tip_mass_frequency(mat.alpha, mat.line_density, p.length, mu)
+        world = held_world(p, mu * rod_mass)
+        rest = shapes.cantilever(p.length, p.n_edges, start=(0.0, 0.0, 1.0))
+        _bend(world, rest, p.length)
+        n_steps = int(math.ceil((periods + 0.25) / ref / p.dt))
+        z = np.empty(n_steps)
+        t0 = time.perf_counter()
+        stable, measured, note = True, None, ""
+        try:
+            for k in range(n_steps):
+                world.step()
+                z[k] = world.positions("rod")[-1, 2] - 1.0
+            up = np.flatnonzero((z[:-1] < 0) & (z[1:] >= 0))
+            t = p.dt * np.arange(1, n_steps + 1)
+            crossings = t[up] - z[up] * p.dt / (z[up + 1] - z[up])
+            if len(crossings) >= 2:
+                measured = float(1.0 / np.mean(np.diff(crossings)))
+            else:
+                note = f"{len(crossings)} upward crossings in {n_steps} steps"
+        except DivergenceError as err:
+            stable, note = False, str(err)
+        if stable and not np.all(np.isfinite(z)) or (stable and np.max(np.abs(z)) > 0.5 * p.length):
+            stable, note = False, f"the tip left the swing: |z| up to {np.nanmax(np.abs(z)):.3g} m"
+        wall = time.perf_counter() - t0
+        out.append(_record("coupling", p, world, measured if stable else None, ref, stable, wall, mass_ratio=mu,
+                           body_mass=mu * rod_mass, note=note))
+    return out
