@@ -71,3 +71,25 @@ def test_running_moves_the_rod_in_real_time_or_faster(app):
 def test_colour_scale_runs_blue_to_red():
     c = colours(np.array([0.0, 0.5, 1.0, 2.0]), 1.0)
     assert c[0, 2] > c[0, 0] and c[2, 0] > c[2, 2] and np.array_equal(c[2], c[3])
+
+
+def test_the_command_prints_its_url_and_stops_on_ctrl_c(tmp_path):
+    """``derods edit --port 0``: one line with the URL on loopback; Ctrl-C (SIGINT) stops it
+    with exit 0."""
+    import signal
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "derods", "edit", "--port", "0"], cwd=tmp_path,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = ""
+        end = time.time() + 60
+        while time.time() < end and "open http" not in line:
+            line = proc.stdout.readline()
+        assert "derods edit: open http://127.0.0.1:" in line
+    finally:
+        proc.send_signal(signal.SIGINT)
+        out, _ = proc.communicate(timeout=30)
+    assert proc.returncode == 0
+    assert "derods edit: stopped" in out

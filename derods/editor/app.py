@@ -417,5 +417,7 @@ def serve(scene: str = "floor", host: str = "127.0.0.1", port: int = 8080) -> No
     try:
         while True:
             time.sleep(1.0)
+    except KeyboardInterrupt:
+        print("derods edit: stopped (save the rod with the page's Save button before stopping)", flush=True)
     finally:
         app.stop()
