@@ -122,6 +122,7 @@ class Reactions:
         edge (what a clamp there resists).
         """
         self.end_moment[:] = end_moment[self.clamp_rod, self.clamp_end]
+        self._x, self._grad = x, grad  # the step's own arrays, valid until its next evaluation
         point = data.xpos[self.bodies]
         holder_wrench(x, grad, t, self.held_vertex, self.held_slot, self.clamp_slot, self.clamp_edge,
                       self.end_moment, point, self.force, self.torque)
@@ -131,3 +132,20 @@ class Reactions:
             mujoco.mj_applyFT(model, data, self.force[s], self.torque[s], point[s], int(b), qfrc)
         data.qfrc_applied[:] += qfrc - self._applied
         self._applied[:] = qfrc
+        self._point = point.copy()
+
+    @property
+    def applied(self) -> np.ndarray:
+        """The generalized force [N or N m] (nv,) the last :meth:`apply` put on the holders."""
+        return self._applied
+
+    def pin_applied(self, model: mujoco.MjModel, data: mujoco.MjData, vertices: np.ndarray) -> np.ndarray:
+        """Of :attr:`applied`, the part from the given held vertices' forces (nv,): what
+        the implicit coupling of :mod:`derods.sim.holders` replaces for pinned ends."""
+        out = np.zeros(model.nv)
+        zero = np.zeros(3)
+        for v in vertices:
+            h = int(np.flatnonzero(self.held_vertex == v)[0])
+            body = int(self.bodies[self.held_slot[h]])
+            mujoco.mj_applyFT(model, data, -self._grad[v], zero, self._x[v], body, out)
+        return out

@@ -34,6 +34,7 @@ from . import generalized_alpha as ga
 from .clamps import Reactions
 from .contact import ContactStep, ReferenceCorrection
 from .divergence import MAX_SPEED, MAX_STRAIN, Diagnosis
+from .holders import Holders
 from .implicit import ImplicitSystem
 from .layout import Layout, RodEntry
 
@@ -206,6 +207,8 @@ class Implicit(Step):
         #: Rods projected back to their rest lengths in the last step (see STRAIN_LIMIT).
         self.n_projected = 0
         self.strain_limit = STRAIN_LIMIT
+        #: Held vertices whose holders have dofs, coupled implicitly (derods.sim.holders).
+        self.holders = Holders(self.model, lay, self.rods, lay.band_rows, self.entries)
 
     def step(self) -> None:
         m, d, lay = self.model, self.data, self.layout
@@ -222,13 +225,16 @@ class Implicit(Step):
         mujoco.mj_forward(m, d)
         if self.reference:
             self.reference.correct(d)
+        if self.holders:
+            self.holders.solve(self)  # the rods' a0 and the holders' qacc, solved together
         a = self._contact(d)
         if a is not None:
             # Contact impulses turn edges too: limit the strain they leave, moving only
             # the vertices no contact pushes on.
             self.n_projected += self._limit_strain(a, self._touching())
-            _io.write_acceleration(lay.dofs, lay.mass, a, self.qacc, self.qfrc_smooth, self.qfrc_constraint,
-                                   not self.euler)
+        if a is not None or self.holders:
+            _io.write_acceleration(lay.dofs, lay.mass, self.a0 if a is None else a, self.qacc, self.qfrc_smooth,
+                                   self.qfrc_constraint, not self.euler)
         mujoco.mj_checkAcc(m, d)
         if self.euler:
             mujoco.mj_Euler(m, d)
@@ -373,7 +379,9 @@ class GeneralizedAlpha(Implicit):
     def _unconstrained(self, lay, t, s) -> None:
         c = self.coefficients
         self.euler_step = False
-        if self._start:
+        if self._start or self.holders:
+            # Rods held by bodies with dofs step as backward Euler's (the coupling of
+            # derods.sim.holders is written for it).
             # The first step (and the first after a restart or a contact) is backward
             # Euler's, whose acceleration seeds the scheme's: the forces' explicit
             # acceleration in a stiff state (an edge stretched by the last Euler step) is
