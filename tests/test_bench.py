@@ -153,7 +153,8 @@ def test_bodies_of_any_mass_pinned_to_a_rod_swing_at_the_closed_form():
 
 def test_only_rods_pinned_to_bodies_with_dofs_are_coupled():
     """The coupled solve costs nothing where nothing needs it: rods held by the world, by
-    mocap bodies or by clamps (which keep the explicit reaction) have no holders."""
+    mocap bodies, by clamps or by bodies MuJoCo damps implicitly (these keep the explicit
+    reaction) have no holders."""
     from derods.bench import coupling as cp
 
     p = bench.CaseParams(n_edges=10, dt=1e-2, young=1e7)
@@ -161,3 +162,5 @@ def test_only_rods_pinned_to_bodies_with_dofs_are_coupled():
     world, _ = p.build.cantilever(p, p.gravity, 0.0)
     world.compile()
     assert not world._step.holders
+    damped = cp.held_world(p, 1.0, joint_damping=0.1)  # MuJoCo's implicit damping: explicit reaction
+    assert not damped._step.holders

@@ -55,12 +55,14 @@ def tip_mass_frequency(alpha: float, line_density: float, length: float, mu: flo
     return b * b / (2.0 * math.pi) * math.sqrt(alpha / (line_density * length**4))
 
 
-def held_world(p, mass: float) -> World:
-    """The cantilever of ``p`` with a free body of ``mass`` [kg] pinned to its tip."""
+def held_world(p, mass: float, joint_damping: float = 0.0) -> World:
+    """The cantilever of ``p`` with a free body of ``mass`` [kg] pinned to its tip (its free
+    joint damped by ``joint_damping`` [N s/m], 0 by default)."""
     x = shapes.cantilever(p.length, p.n_edges, start=(0.0, 0.0, 1.0))
     spec = mujoco.MjSpec()
     bob = spec.worldbody.add_body(name="bob", pos=x[-1])
-    bob.add_freejoint()
+    joint = bob.add_freejoint()
+    joint.damping = [joint_damping, 0.0, 0.0]
     bob.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[BOB_RADIUS, 0, 0], mass=mass, contype=0,
                  conaffinity=0)
     world = World(spec, dt=p.dt, gravity=(0.0, 0.0, 0.0), mode=p.mode)

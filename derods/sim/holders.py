@@ -23,7 +23,9 @@ columns of K at the held vertices come from central differences of the compiled
 gradient (the band holds only free dofs). Pinned ends only, for now: a clamped end's
 edge turns with its holder's orientation as well, which these columns (vertices moved,
 the holder's frame kept) miss; clamped ends keep the explicit reaction of
-:class:`~derods.sim.clamps.Reactions`.
+:class:`~derods.sim.clamps.Reactions`, and so do holders whose chain MuJoCo damps
+implicitly (joint damping, actuators on its joints: :func:`damped`), whose implicit
+damping term this solve does not carry.
 """
 
 from __future__ import annotations
@@ -48,6 +50,18 @@ def chain_dofs(model: mujoco.MjModel, body: int) -> np.ndarray:
     return np.array(sorted(dofs), dtype=np.int64)
 
 
+def damped(model: mujoco.MjModel, body: int) -> bool:
+    """Whether MuJoCo integrates a velocity dependence of ``body``'s chain implicitly (joint
+    damping, or an actuator on one of its joints): the solve here does not carry MuJoCo's
+    implicit damping term, so such holders keep the explicit reaction."""
+    dofs = chain_dofs(model, body)
+    if np.any(model.dof_damping[dofs] > 0):
+        return True
+    joints = set(int(model.dof_jntid[k]) for k in dofs)
+    return any(model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT and int(model.actuator_trnid[a, 0]) in joints
+               for a in range(model.nu))
+
+
 class Holders:
     """The held vertices whose holders have dofs, and the coupled solve. Built once from
     the layout; ``bool(holders)`` is False (and costs nothing) when there are none."""
@@ -63,7 +77,7 @@ class Holders:
                     clamped.update(int(layout.v_off[i] + v) for v in e.held(key))
         self.vertex, self.body = [], []
         for v, b in zip(layout.moved_vertex, layout.moved_body):
-            if int(v) not in clamped and len(chain_dofs(model, int(b))):
+            if int(v) not in clamped and len(chain_dofs(model, int(b))) and not damped(model, int(b)):
                 self.vertex.append(int(v))
                 self.body.append(int(b))
         self.vertex = np.array(self.vertex, dtype=np.int64)
