@@ -11,16 +11,20 @@ mouse. Loopback only unless ``host`` says otherwise; viser's public share button
 
 from __future__ import annotations
 
-import math
 import pathlib
 import threading
 import time
 
 import mujoco
 import numpy as np
+import trimesh
+
+from ..viz.overlay import bending_strain, strain_colours
 
 from .session import ENDS, RESTS, Session
 
+#: The grab and control-point spheres' mesh: a unit icosahedron.
+_ICOSPHERE = trimesh.creation.icosphere(subdivisions=0)
 #: The simulation's frame period [s] (the drawing follows at this rate), and how many
 #: frames of simulated time it catches up at most when it falls behind the wall clock.
 FRAME = 1.0 / 30.0
@@ -28,11 +32,14 @@ MAX_BEHIND = 3
 
 
 def colours(values: np.ndarray, top: float) -> np.ndarray:
-    """uint8 RGB (n, 3) from blue (0) through green to red (>= top)."""
-    w = np.clip(np.asarray(values, dtype=float) / max(top, 1e-12), 0.0, 1.0)[:, None]
-    blue, green, red = np.array([40, 90, 230]), np.array([40, 200, 90]), np.array([230, 50, 40])
-    out = np.where(w < 0.5, blue + (green - blue) * (2 * w), green + (red - green) * (2 * w - 1))
-    return out.astype(np.uint8)
+    """uint8 RGB (n, 3) on the strain scale of the videos' overlays
+    (:func:`derods.viz.overlay.strain_colours`: blue at 0, yellow, red at ``top``)."""
+    return (255 * strain_colours(values, top)[:, :3]).astype(np.uint8)
+
+
+def _hex(value: float, top: float) -> str:
+    r, g, b = colours(np.array([value]), top)[0]
+    return f"#{r:02x}{g:02x}{b:02x}"
 
 
 def _segments(x: np.ndarray) -> np.ndarray:
@@ -220,9 +227,9 @@ class EditorApp:
                 field = kappa if self.colour_by.value == "curvature" else np.abs(tau)
                 top = max(float(field.max()), 1e-9)
                 c = colours(0.5 * (field[:-1] + field[1:]), top)
-                self.legend.content = (f"<span style='color:#285ae6'>&#9632;</span> 0 &nbsp; "
-                                       f"<span style='color:#28c85a'>&#9632;</span> {top / 2:.3g} &nbsp; "
-                                       f"<span style='color:#e63228'>&#9632;</span> {top:.3g} 1/m "
+                self.legend.content = (f"<span style='color:{_hex(0, top)}'>&#9632;</span> 0 &nbsp; "
+                                       f"<span style='color:{_hex(top / 2, top)}'>&#9632;</span> {top / 2:.3g} &nbsp; "
+                                       f"<span style='color:{_hex(top, top)}'>&#9632;</span> {top:.3g} 1/m "
                                        f"({'|torsion|' if self.colour_by.value == 'torsion' else 'curvature'})")
                 self._put(scene.add_line_segments("/curve/rod", _segments(x), np.repeat(c[:, None], 2, axis=1),
                                                   thickness=2 * s.settings.radius))
@@ -255,20 +262,15 @@ class EditorApp:
         s = self.session
         closed = s.michell is not None
         pts = np.vstack([x, x[:1]]) if closed else x
-        e = np.diff(pts, axis=0)
-        t = e / np.linalg.norm(e, axis=1)[:, None]
-        turn = np.zeros(len(e))
-        turn[1:] = np.arccos(np.clip(np.einsum("ij,ij->i", t[1:], t[:-1]), -1, 1))
-        strain = s.settings.radius * turn / np.linalg.norm(e, axis=1)  # r kappa, bending strain
-        c = colours(strain, 0.05)
+        c = colours(s.settings.radius * bending_strain(x, closed), 0.05)  # r kappa, red at 5 %
         self._put(self.server.scene.add_line_segments("/sim/rod", _segments(pts), np.repeat(c[:, None], 2, axis=1),
                                                       thickness=2 * s.settings.radius))
         # grab points: one small sphere per vertex, dragged to pull it
         if not hasattr(self, "_grab") or self._grab_n != len(x):
             self._grab_n = len(x)
-            ico = _icosphere()
             self._grab = self._put(self.server.scene.add_batched_meshes_simple(
-                "/sim/grab", ico[0] * max(2.5 * s.settings.radius, 0.01), ico[1], np.tile([1.0, 0, 0, 0], (len(x), 1)), x,
+                "/sim/grab", _ICOSPHERE.vertices * max(2.5 * s.settings.radius, 0.01), _ICOSPHERE.faces,
+                np.tile([1.0, 0, 0, 0], (len(x), 1)), x,
                 batched_colors=(250, 250, 250), batched_opacities=np.full(len(x), 0.08)))
             self._grab.on_drag(self._on_pull)
         else:
@@ -298,14 +300,14 @@ class EditorApp:
         if not show:
             self._remove("/points/spheres")
             return
-        ico = _icosphere()
         colours_ = np.array([(30, 30, 30) if i % 3 == 0 else (120, 120, 120) for i in range(len(p))], dtype=np.uint8)
         handle = self._nodes.get("/points/spheres")
         if handle is not None and len(handle.batched_positions) == len(p):
             handle.batched_positions = p
             return
         handle = self._put(self.server.scene.add_batched_meshes_simple(
-            "/points/spheres", ico[0] * 0.012, ico[1], np.tile([1.0, 0, 0, 0], (len(p), 1)), p,
+            "/points/spheres", _ICOSPHERE.vertices * 0.012, _ICOSPHERE.faces, np.tile([1.0, 0, 0, 0], (len(p), 1)),
+            p,
             batched_colors=colours_))
         handle.on_drag(self._on_point_drag)
 
@@ -396,18 +398,6 @@ class EditorApp:
                 else:
                     paced, self.pace = None, None
             time.sleep(max(0.0, FRAME - (time.perf_counter() - t0)))
-
-
-def _icosphere() -> tuple[np.ndarray, np.ndarray]:
-    """A unit icosahedron's vertices (12, 3) and faces (20, 3)."""
-    p = (1 + math.sqrt(5)) / 2
-    v = np.array([[-1, p, 0], [1, p, 0], [-1, -p, 0], [1, -p, 0], [0, -1, p], [0, 1, p], [0, -1, -p], [0, 1, -p],
-                  [p, 0, -1], [p, 0, 1], [-p, 0, -1], [-p, 0, 1]], dtype=float)
-    v /= np.linalg.norm(v, axis=1)[:, None]
-    f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2],
-                  [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5],
-                  [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]])
-    return v, f
 
 
 def serve(scene: str = "floor", host: str = "127.0.0.1", port: int = 8080) -> None:
