@@ -221,15 +221,22 @@ def frequency(p: CaseParams, periods: int = 4) -> list[dict]:
         for k in range(n_steps):
             world.step()
             z[k] = world.positions()[-1, 2] - 1.0
-        t = p.dt * np.arange(1, n_steps + 1)
-        up = np.flatnonzero((z[:-1] < 0) & (z[1:] >= 0))
-        crossings = t[up] - z[up] * p.dt / (z[up + 1] - z[up])  # linear interpolation
-        if len(crossings) >= 2:
-            measured = float(1.0 / np.mean(np.diff(crossings)))
+        measured = crossing_frequency(z, p.dt)
     except DivergenceError as err:
         stable, note = False, str(err)
     wall = time.perf_counter() - t0
     return [_record("frequency", p, world, measured, ref, stable, wall, note=note)]
+
+
+def crossing_frequency(z: np.ndarray, dt: float) -> float | None:
+    """The frequency [Hz] of a swing z (n,) sampled every dt [s] after each of n steps,
+    from its upward zero crossings (linearly interpolated); None with fewer than two."""
+    t = dt * np.arange(1, len(z) + 1)
+    up = np.flatnonzero((z[:-1] < 0) & (z[1:] >= 0))
+    crossings = t[up] - z[up] * dt / (z[up + 1] - z[up])
+    if len(crossings) < 2:
+        return None
+    return float(1.0 / np.mean(np.diff(crossings)))
 
 
 def swing_amplitudes(z: np.ndarray, hysteresis: float = 0.05) -> tuple[np.ndarray, np.ndarray]:

@@ -87,7 +87,7 @@ def _bend(world: World, x: np.ndarray, length: float) -> None:
 
 def coupling(p, periods: float = 3.0) -> list[dict]:
     """One record per body mass in MASS_RATIOS (see the module docstring)."""
-    from .cases import _record  # the harness's record layout
+    from .cases import _record, crossing_frequency  # the harness's record layout and measure
 
     mat = p.material
     rod_mass = mat.line_density * p.length
@@ -105,13 +105,9 @@ def coupling(p, periods: float = 3.0) -> list[dict]:
             for k in range(n_steps):
                 world.step()
                 z[k] = world.positions("rod")[-1, 2] - 1.0
-            up = np.flatnonzero((z[:-1] < 0) & (z[1:] >= 0))
-            t = p.dt * np.arange(1, n_steps + 1)
-            crossings = t[up] - z[up] * p.dt / (z[up + 1] - z[up])
-            if len(crossings) >= 2:
-                measured = float(1.0 / np.mean(np.diff(crossings)))
-            else:
-                note = f"{len(crossings)} upward crossings in {n_steps} steps"
+            measured = crossing_frequency(z, p.dt)
+            if measured is None:
+                note = f"fewer than two upward crossings in {n_steps} steps"
         except DivergenceError as err:
             stable, note = False, str(err)
         if stable and not np.all(np.isfinite(z)) or (stable and np.max(np.abs(z)) > 0.5 * p.length):
