@@ -124,7 +124,12 @@ class Step:
         """Positions, strain check, frames, twist, forces and band of every rod, reactions."""
         if self._moving:
             mujoco.mj_kinematics(self.model, self.data)  # after mj_step, xpos shows the previous state
-        self.forces(self.positions())
+        self.forces(self._prepared(self.positions()))
+
+    def _prepared(self, x: np.ndarray) -> np.ndarray:
+        """The positions x (n_vertices, 3) [m] the forces are taken at: as they are, but
+        in a mode that moves them first (generalized-alpha's strain limit)."""
+        return x
 
     def forces(self, x: np.ndarray) -> None:
         """Frames, twist, forces and band of every rod at positions x (n_vertices, 3) [m],
@@ -324,6 +329,7 @@ class GeneralizedAlpha(Implicit):
     def __init__(self, *args, rho_inf: float = ga.RHO_INF, **kwargs):
         super().__init__(*args, **kwargs)
         self.coefficients = ga.Coefficients.from_rho_inf(rho_inf)
+        self._euler_weights = (self.system.m_coef, self.system.s)  # backward Euler's M and K weights
         self.a_prev = np.zeros(self.layout.n)
         self._w = np.zeros(self.layout.n)
         self._zero = np.zeros(self.layout.n)
@@ -346,13 +352,8 @@ class GeneralizedAlpha(Implicit):
         """Forget the carried acceleration: the next step starts from the forces'."""
         self._start = True
 
-    def elastic(self) -> None:
-        if self._moving:
-            mujoco.mj_kinematics(self.model, self.data)
-        x = self.positions()
-        if self._project_positions(x):
-            x = self.positions()
-        self.forces(x)
+    def _prepared(self, x: np.ndarray) -> np.ndarray:
+        return self.positions() if self._project_positions(x) else x
 
     def _project_positions(self, x: np.ndarray) -> int:
         """Project the rods strained beyond the strain limit onto their rest lengths,
@@ -417,8 +418,7 @@ class GeneralizedAlpha(Implicit):
         """Make this step backward Euler's: forces at x0, the implicit mode's solve."""
         self.forces(self.x)
         Implicit._unconstrained(self, self.layout, self.terms, self.system)
-        h = self.h
-        self.system.m_coef, self.system.s = 1.0 + h * self.mass_damping, h * h + h * self.stiffness_damping
+        self.system.m_coef, self.system.s = self._euler_weights
         self.euler_step = True
 
     def _solve(self, lay, t, s, c) -> None:
