@@ -15,12 +15,12 @@ import pathlib
 import threading
 import time
 
-import mujoco
 import numpy as np
 import trimesh
 
 from ..viz.overlay import bending_strain, strain_colours
 
+from .scene import draw_static_geoms
 from .session import ENDS, RESTS, Session
 
 #: The grab and control-point spheres' mesh: a unit icosahedron.
@@ -66,7 +66,7 @@ class EditorApp:
         self._nodes: dict = {}
         #: Simulated over wall time since the run (re)started (shown while running).
         self.pace: float | None = None
-        self._scene_geoms()
+        draw_static_geoms(self.server.scene, self.session.scene)
         self._widgets()
         self.redraw()
         self._alive = True
@@ -81,39 +81,6 @@ class EditorApp:
         self._alive = False
         self._thread.join(timeout=2.0)
         self.server.stop()
-
-    # -- the scene ------------------------------------------------------------------------
-    def _scene_geoms(self) -> None:
-        """The MuJoCo scene's static geoms as viser primitives (planes as a grid)."""
-        m = mujoco.MjModel.from_xml_path(self.session.scene)
-        d = mujoco.MjData(m)
-        mujoco.mj_forward(m, d)
-        scene = self.server.scene
-        for g in range(m.ngeom):
-            if m.body_dofnum[m.geom_bodyid[g]] or m.geom_rgba[g, 3] == 0:
-                continue
-            pos, size = d.geom_xpos[g], m.geom_size[g]
-            quat = np.empty(4)
-            mujoco.mju_mat2Quat(quat, d.geom_xmat[g])
-            rgb = tuple(int(255 * c) for c in m.geom_rgba[g, :3])
-            if m.geom_matid[g] >= 0:
-                rgb = tuple(int(255 * c) for c in m.mat_rgba[m.geom_matid[g], :3])
-            name, kind = f"/scene/geom_{g}", m.geom_type[g]
-            if kind == mujoco.mjtGeom.mjGEOM_PLANE:
-                scene.add_grid(name, width=2 * size[0] or 8.0, height=2 * size[1] or 8.0, position=pos, wxyz=quat)
-            elif kind == mujoco.mjtGeom.mjGEOM_BOX:
-                scene.add_box(name, rgb, tuple(2 * size), position=pos, wxyz=quat)
-            elif kind == mujoco.mjtGeom.mjGEOM_SPHERE:
-                scene.add_icosphere(name, radius=float(size[0]), color=rgb, position=pos)
-            elif kind in (mujoco.mjtGeom.mjGEOM_CYLINDER, mujoco.mjtGeom.mjGEOM_CAPSULE):
-                scene.add_cylinder(name, radius=float(size[0]), height=float(2 * size[1]), color=rgb,
-                                   position=pos, wxyz=quat)
-            elif kind == mujoco.mjtGeom.mjGEOM_MESH:
-                mid = m.geom_dataid[g]
-                v0, nv = m.mesh_vertadr[mid], m.mesh_vertnum[mid]
-                f0, nf = m.mesh_faceadr[mid], m.mesh_facenum[mid]
-                scene.add_mesh_simple(name, m.mesh_vert[v0:v0 + nv], m.mesh_face[f0:f0 + nf], color=rgb,
-                                      position=pos, wxyz=quat)
 
     # -- the panel ------------------------------------------------------------------------
     def _widgets(self) -> None:
