@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -164,3 +165,18 @@ def test_only_rods_pinned_to_bodies_with_dofs_are_coupled():
     assert not world._step.holders
     damped = cp.held_world(p, 1.0, joint_damping=0.1)  # MuJoCo's implicit damping: explicit reaction
     assert not damped._step.holders
+
+
+def test_holders_keep_no_dense_matrix_of_the_whole_model():
+    """The coupled solve's memory follows the holders' dofs, not MuJoCo's nv: a dense nv x nv
+    mass matrix (kept for every world once) asked 60 GB of the 1000-strand hair. Its mass
+    block, a column per dof through mj_mulM, equals the dense matrix's."""
+    from derods.bench import coupling as cp
+
+    p = bench.CaseParams(n_edges=10, dt=1e-2, young=1e7)
+    world = cp.held_world(p, 1.0)
+    holders, m, d = world._step.holders, world._step.model, world._step.data
+    assert all(a.size < m.nv ** 2 for a in vars(holders).values() if isinstance(a, np.ndarray))
+    full = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d, full)
+    np.testing.assert_allclose(holders.mass_block(m, d), full[np.ix_(holders.dofs, holders.dofs)], rtol=1e-12)

@@ -85,7 +85,8 @@ class Holders:
         self.dofs = np.unique(np.concatenate([chain_dofs(model, b) for b in self.body])) if len(self.body) \
             else np.zeros(0, dtype=np.int64)
         self._terms = Terms.empty(rods.n_rods, rods.n_vertices, layout.n, band_rows)
-        self._full_m = np.zeros((model.nv, model.nv))
+        self._unit = np.zeros(model.nv)
+        self._column = np.zeros(model.nv)
         self._jacp = np.zeros((3, model.nv))
         self._jacr = np.zeros((3, model.nv))
 
@@ -114,6 +115,17 @@ class Holders:
                 k_h[:, 3 * i + a] = col[self.vertex].ravel()
         return k_f, k_h
 
+    def mass_block(self, m: mujoco.MjModel, d: mujoco.MjData) -> np.ndarray:
+        """MuJoCo's mass matrix on the holders' dofs, M[dofs, dofs] (k, k) [kg or kg m^2], a
+        column per dof through mj_mulM (a dense nv x nv matrix would not fit a large world)."""
+        mass = np.empty((len(self.dofs), len(self.dofs)))
+        for j, dof in enumerate(self.dofs):
+            self._unit[dof] = 1.0
+            mujoco.mj_mulM(m, d, self._column, self._unit)
+            self._unit[dof] = 0.0
+            mass[:, j] = self._column[self.dofs]
+        return mass
+
     def solve(self, step) -> None:
         """Couple the step's rods to their holders: replace step.a0 (the rods'
         unconstrained acceleration) and write the holders' qacc (call after MuJoCo's
@@ -134,8 +146,7 @@ class Holders:
         grad_h = step.terms.grad[self.vertex].ravel()
         force = -grad_h - (b + h) * (k_f.T @ step.v + k_h @ v_h) - s * (k_f.T @ y0)
         schur = s * k_h - s * (k_f.T @ y)
-        mujoco.mj_fullM(m, d, self._full_m)
-        mass = self._full_m[np.ix_(dofs, dofs)]
+        mass = self.mass_block(m, d)
         # What MuJoCo puts on the holders' dofs, without the rods' explicit reaction.
         tau = d.qfrc_smooth[dofs] - step.reactions.pin_applied(m, d, self.vertex)[dofs] + d.qfrc_constraint[dofs]
         a_b = np.linalg.solve(mass + jac.T @ schur @ jac, tau + jac.T @ force)
