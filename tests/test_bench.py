@@ -152,10 +152,9 @@ def test_bodies_of_any_mass_pinned_to_a_rod_swing_at_the_closed_form():
         assert abs(rec["rel_error"]) < 0.01, rec
 
 
-def test_only_rods_pinned_to_bodies_with_dofs_are_coupled():
-    """The coupled solve costs nothing where nothing needs it: rods held by the world, by
-    mocap bodies, by clamps or by bodies MuJoCo damps implicitly (these keep the explicit
-    reaction) have no holders."""
+def test_only_rods_held_by_bodies_with_dofs_are_coupled():
+    """The coupled solve costs nothing where nothing needs it: rods held by the world (or
+    by mocap bodies) have no holders; a body with dofs holds, damped by MuJoCo or not."""
     from derods.bench import coupling as cp
 
     p = bench.CaseParams(n_edges=10, dt=1e-2, young=1e7)
@@ -163,8 +162,7 @@ def test_only_rods_pinned_to_bodies_with_dofs_are_coupled():
     world, _ = p.build.cantilever(p, p.gravity, 0.0)
     world.compile()
     assert not world._step.holders
-    damped = cp.held_world(p, 1.0, joint_damping=0.1)  # MuJoCo's implicit damping: explicit reaction
-    assert not damped._step.holders
+    assert cp.held_world(p, 1.0, joint_damping=0.1)._step.holders
 
 
 def test_holders_keep_no_dense_matrix_of_the_whole_model():

@@ -11,7 +11,7 @@ mass: beta L is the smallest root of
 f = (bL)^2 / (2 pi) sqrt(alpha / (rho A L^4)) (mu = 0: the bare cantilever's 1.8751).
 The record per mass: ``measured`` the frequency from the tip's zero crossings,
 ``reference`` the closed form, ``stable``. It measures how the rod's force reaches the
-body: a pinned end's holder is solved together with the rod (:mod:`derods.sim.holders`);
+body: a held end's holder is solved together with the rod (:mod:`derods.sim.holders`);
 applied one step late instead (:class:`derods.sim.clamps.Reactions` alone, as before),
 every body of 1e-3 .. 1e3 times the rod's mass diverged at dt = 1e-2.
 """

@@ -106,7 +106,6 @@ class Reactions:
         self.clamp_end = np.array(clamp_sign, dtype=np.int64)
         self.force = np.zeros((len(bodies), 3))
         self.torque = np.zeros((len(bodies), 3))
-        self.end_moment = np.zeros(len(clamp_slot))
         self._applied = np.zeros(model.nv)
         self._qfrc = np.zeros(model.nv)
 
@@ -121,31 +120,24 @@ class Reactions:
         (n_edges, 3); end_moment (n_rods, 2): dE/dtheta [N m] of each rod's first and last
         edge (what a clamp there resists).
         """
-        self.end_moment[:] = end_moment[self.clamp_rod, self.clamp_end]
-        self._x, self._grad = x, grad  # the step's own arrays, valid until its next evaluation
-        point = data.xpos[self.bodies]
-        holder_wrench(x, grad, t, self.held_vertex, self.held_slot, self.clamp_slot, self.clamp_edge,
-                      self.end_moment, point, self.force, self.torque)
-        qfrc = self._qfrc
-        qfrc[:] = 0.0
-        for s, b in enumerate(self.bodies):
-            mujoco.mj_applyFT(model, data, self.force[s], self.torque[s], point[s], int(b), qfrc)
+        qfrc = self.generalized(model, data, x, grad, t, end_moment, self._qfrc)
         data.qfrc_applied[:] += qfrc - self._applied
         self._applied[:] = qfrc
-        self._point = point.copy()
+
+    def generalized(self, model: mujoco.MjModel, data: mujoco.MjData, x: np.ndarray, grad: np.ndarray,
+                    t: np.ndarray, end_moment: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """The rods' generalized force on MuJoCo's dofs (into out, (nv,)) [N or N m], for
+        the given state (arguments as :meth:`apply`'s, bodies placed as in ``data``, whose
+        kinematics and com positions must be current); sets :attr:`force`, :attr:`torque`."""
+        point = data.xpos[self.bodies]
+        holder_wrench(x, grad, t, self.held_vertex, self.held_slot, self.clamp_slot, self.clamp_edge,
+                      end_moment[self.clamp_rod, self.clamp_end], point, self.force, self.torque)
+        out[:] = 0.0
+        for s, b in enumerate(self.bodies):
+            mujoco.mj_applyFT(model, data, self.force[s], self.torque[s], point[s], int(b), out)
+        return out
 
     @property
     def applied(self) -> np.ndarray:
         """The generalized force [N or N m] (nv,) the last :meth:`apply` put on the holders."""
         return self._applied
-
-    def pin_applied(self, model: mujoco.MjModel, data: mujoco.MjData, vertices: np.ndarray) -> np.ndarray:
-        """Of :attr:`applied`, the part from the given held vertices' forces (nv,): what
-        the implicit coupling of :mod:`derods.sim.holders` replaces for pinned ends."""
-        out = np.zeros(model.nv)
-        zero = np.zeros(3)
-        for v in vertices:
-            h = int(np.flatnonzero(self.held_vertex == v)[0])
-            body = int(self.bodies[self.held_slot[h]])
-            mujoco.mj_applyFT(model, data, -self._grad[v], zero, self._x[v], body, out)
-        return out

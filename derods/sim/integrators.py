@@ -213,7 +213,7 @@ class Implicit(Step):
         self.n_projected = 0
         self.strain_limit = STRAIN_LIMIT
         #: Held vertices whose holders have dofs, coupled implicitly (derods.sim.holders).
-        self.holders = Holders(self.model, lay, self.rods, lay.band_rows, self.entries)
+        self.holders = Holders(self.model, lay, self.rods, lay.band_rows, self.reactions)
 
     def step(self) -> None:
         m, d, lay = self.model, self.data, self.layout
