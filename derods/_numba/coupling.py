@@ -34,8 +34,8 @@ def write_applied(dofs, mass, acc, other, qfrc_applied):
 @nb.njit(cache=True)
 def write_acceleration(dofs, mass, a, qacc, qfrc_smooth, qfrc_constraint, with_force):
     """qacc[dofs] = a; with_force: also qfrc_constraint[dofs] = M a - qfrc_smooth[dofs] (the
-    implicit integrators re-solve from forces; rod dofs carry no damping or coupling there,
-    so this force reproduces a)."""
+    implicit integrators, and Euler's with damped dofs, re-solve from forces; rod dofs carry
+    no damping or coupling there, so this force reproduces a)."""
     for k in range(len(dofs)):
         qacc[dofs[k]] = a[k]
         if with_force:

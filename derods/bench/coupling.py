@@ -116,3 +116,56 @@ def coupling(p, periods: float = 3.0) -> list[dict]:
         out.append(_record("coupling", p, world, measured if stable else None, ref, stable, wall, mass_ratio=mu,
                            body_mass=mu * rod_mass, note=note))
     return out
+
+
+#: The held-body scenes of :func:`perturbed`: a clamped end on a body that slides along the
+#: rod, or on a free body.
+SCENES = ("slide", "free")
+#: Body masses [kg] the stability sweep (benchmarks/bench_holders.py) takes.
+SWEEP_MASSES = (1e-3, 1e-2, 1e-1, 1.0, 1e1, 1e2, 1e3, 1e4)
+
+
+def clamped_world(p, scene: str, mass: float) -> World:
+    """The rod of ``p`` along +x from (0, 0, 1) m, clamped to the world at its start and to
+    a body of ``mass`` [kg] at its end: on a slide joint along the rod ("slide") or a free
+    joint ("free"); no gravity."""
+    if scene not in SCENES:
+        raise ValueError(f"scene must be one of {SCENES}, got {scene!r}")
+    x = shapes.cantilever(p.length, p.n_edges, start=(0.0, 0.0, 1.0))
+    spec = mujoco.MjSpec()
+    body = spec.worldbody.add_body(name="holder", pos=x[-1])
+    if scene == "slide":
+        body.add_joint(type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[1.0, 0.0, 0.0])
+    else:
+        body.add_freejoint()
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[BOB_RADIUS, 0, 0], mass=mass, contype=0,
+                  conaffinity=0)
+    world = World(spec, dt=p.dt, gravity=(0.0, 0.0, 0.0), mode=p.mode)
+    world.add_rod(Rod(x, p.material), "rod", start="clamp", end="clamp", end_body="holder")
+    world.compile()
+    return world
+
+
+def perturbed(p, scene: str, mass: float, steps: int = 300, offset: float = 1e-6) -> dict:
+    """Move the holder of :func:`clamped_world` by ``offset`` [m] (along each of its
+    translations) from rest and step: ``stable`` when nothing diverged and its largest
+    displacement stayed within 10 times the offset's length (the rod and body only
+    exchange that energy; backward Euler damps it). Returns {stable, peak [m], note}."""
+    world = clamped_world(p, scene, mass)
+    m, d = world.model, world.data
+    adr = m.jnt_qposadr[m.body("holder").jntadr[0]]
+    k = 1 if scene == "slide" else 3
+    rest = d.qpos[adr:adr + k].copy()
+    d.qpos[adr:adr + k] += offset
+    mujoco.mj_kinematics(m, d)
+    limit = 10.0 * offset * math.sqrt(k)
+    peak = 0.0
+    try:
+        for i in range(steps):
+            world.step()
+            peak = max(peak, float(np.max(np.abs(d.qpos[adr:adr + k] - rest))))
+            if not np.isfinite(peak) or peak > limit:
+                return {"stable": False, "peak": peak, "note": f"displacement {peak:.3g} m at step {i}"}
+    except DivergenceError as err:
+        return {"stable": False, "peak": peak, "note": str(err)}
+    return {"stable": True, "peak": peak, "note": ""}

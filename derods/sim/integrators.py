@@ -203,6 +203,11 @@ class Implicit(Step):
         margin = bool(np.any(self.model.flex_margin[rod_flex] > 0))
         self.reference = ReferenceCorrection(self.model, self.data, margin)
         self.euler = self.model.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
+        # Whether MuJoCo's integrator takes qacc from the forces again: the implicit ones
+        # always, Euler's when any dof is damped (it solves (M + h B) qacc = f then), so the
+        # rod dofs' acceleration must be written as a force too.
+        eulerdamp = not self.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_EULERDAMP
+        self.resolves = not self.euler or (eulerdamp and bool(np.any(self.model.dof_damping > 0)))
         lay = self.layout
         # Open rods of the default (inextensible) stretch stiffness get their strain limited.
         self.limited = np.array([not e.rod.closed and e.rod.stretch_stiffness is None for e in self.entries])
@@ -239,7 +244,7 @@ class Implicit(Step):
             self.n_projected += self._limit_strain(a, self._touching())
         if a is not None or self.holders:
             _io.write_acceleration(lay.dofs, lay.mass, self.a0 if a is None else a, self.qacc, self.qfrc_smooth,
-                                   self.qfrc_constraint, not self.euler)
+                                   self.qfrc_constraint, self.resolves)
         mujoco.mj_checkAcc(m, d)
         if self.euler:
             mujoco.mj_Euler(m, d)
