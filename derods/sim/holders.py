@@ -22,12 +22,20 @@ it being a Schur complement (A keeps its band):
 
     (M - h D + s K_qq - s^2 K_qf A^-1 K_fq) a_q = f_q - (b + h)(...) - s K_qf y0.
 
-K's columns come from central differences over the holder dofs: each dof moved by
-+-eps through ``mj_integratePos`` (rotations included), MuJoCo's kinematics on a
-scratch copy of the data, the held vertices and clamp frames placed as the step
-places them, the rods' gradient and generalized reaction evaluated. A clamp's edge
-turns with its body, so the twisting moment and the turning edge are in these
-columns too. The dofs solved are those of the kinematic trees the holders belong to
+K_fq = K_fh J + F: K_fh the Gauss-Newton blocks between free and held vertices, from
+the compiled step itself (every vertex given a place in its rod's band), J the held
+points' Jacobian (mj_jac), F what turning a clamp's frame does to the free vertices'
+force; F and K_qq come from central differences over the holder dofs (each dof moved
+by +-eps through ``mj_integratePos``, MuJoCo's kinematics on a scratch copy of the
+data, the rods' gradient and generalized reaction evaluated there), so a clamp's
+twisting moment and turning edge are in them. Using the band's own blocks (rather than
+exact differences, which the band's Gauss-Newton blocks do not match) makes a rigid
+translation of rods and holders cost no force: a free rod pinned to a free body keeps
+its linear momentum to 2e-10 (1.8e-3 .. 2e-2 with differenced columns). A clamp's
+second held vertex sits off its body's origin, and MuJoCo's Euler and implicitfast
+integrators do not keep the momentum of a spinning body with an off-centre mass
+(measured alone, no rods: 8e-4 .. 1e-3 over 200 steps; RK4 6e-12), which bounds a
+clamped pair's momentum the same way. The dofs solved are those of the kinematic trees the holders belong to
 (M is block diagonal over trees, so MuJoCo's own implicit solve of those rows then
 reproduces a_q exactly); trees with no rod attached stay MuJoCo's alone.
 """
@@ -42,6 +50,7 @@ import mujoco
 import numpy as np
 
 from .._numba.coupling import gather_positions
+from ..stencil import ring_order
 from ..step import Frames, Terms, evaluate
 
 #: The central-difference step for K's columns [relative to the shortest edge for a
@@ -98,6 +107,44 @@ def rotational(model: mujoco.MjModel, dof: int) -> bool:
     return kind in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_BALL)
 
 
+def translation_mode(model: mujoco.MjModel, layout, dofs: np.ndarray, bodies) -> np.ndarray | None:
+    """The motion of the holder dofs ``dofs`` (k, 3) that translates every held rod vertex
+    rigidly along x, y, z, when the rods and their holders can translate freely together:
+    every held vertex on one of ``bodies``' trees, each rooted in a free joint (whose
+    first three dofs are world-frame translations). None otherwise (a vertex held by the
+    world or a mocap body, a tree rooted in other joints: the momentum is not theirs)."""
+    roots = {int(model.body_rootid[b]) for b in bodies}
+    if len(layout.moved_vertex) != int(np.sum(layout.place < 0)):
+        return None
+    if not all(int(model.body_rootid[b]) in roots for b in layout.moved_body):
+        return None
+    mode = np.zeros((len(dofs), 3))
+    for root in roots:
+        j = int(model.body_jntadr[root])
+        if model.body_jntnum[root] < 1 or model.jnt_type[j] != mujoco.mjtJoint.mjJNT_FREE:
+            return None
+        for a in range(3):
+            mode[np.searchsorted(dofs, int(model.jnt_dofadr[j]) + a), a] = 1.0
+    return mode
+
+
+def band_entry(ab: np.ndarray, i: int, j: int) -> float:
+    """H[i, j] of a symmetric matrix kept as its lower band ab (rows, n)."""
+    if i < j:
+        i, j = j, i
+    return float(ab[i - j, j]) if i - j < ab.shape[0] else 0.0
+
+
+def invariant(k_qq: np.ndarray, k_qf_sum: np.ndarray, mode: np.ndarray) -> np.ndarray:
+    """k_qq (k, k) made symmetric and exact on the translation mode (k, 3): the nearest
+    symmetric matrix K with K mode = -k_qf_sum (k, 3) (= -K_qf 1, what translation
+    invariance of the energy asks), by a symmetric rank-six correction."""
+    k = 0.5 * (k_qq + k_qq.T)
+    p = mode @ np.linalg.inv(mode.T @ mode)
+    r = k @ mode + k_qf_sum
+    return k - r @ p.T - p @ r.T + p @ (mode.T @ r) @ p.T
+
+
 class Holders:
     """The bodies with dofs that hold rod ends, and the coupled solve. Built once from
     the layout; ``bool(holders)`` is False (and costs nothing) when there are none.
@@ -123,7 +170,22 @@ class Holders:
         self._unit = np.zeros(model.nv)
         self._column = np.zeros(model.nv)
         edge = float(np.min(rods.rest_len))
-        self._eps = np.array([FD_STEP if rotational(model, int(j)) else FD_STEP * edge for j in self.dofs])
+        self._eps_rot = np.array([rotational(model, int(j)) for j in self.dofs])
+        self._eps = np.where(self._eps_rot, FD_STEP, FD_STEP * edge)
+        self._band_of_rod = np.arange(rods.n_rods, dtype=np.int64)
+        self._jacp, self._jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
+        coupled = np.isin(reactions.bodies[reactions.held_slot], self.bodies)
+        #: Held vertices on these bodies (H,), and the rod of each.
+        self.held = reactions.held_vertex[coupled]
+        self._rod_of_held = np.searchsorted(rods.v_off, self.held, side="right") - 1
+        # Every vertex's place in its own rod's band, held ones included: the Gauss-Newton
+        # blocks between free and held vertices come from the compiled step itself.
+        nvs = np.diff(rods.v_off)
+        self._place_all = np.concatenate([np.argsort(ring_order(n)) if rods.closed[i] else np.arange(n)
+                                          for i, n in enumerate(nvs)]).astype(np.int64)
+        self._bands = np.zeros((rods.n_rods, band_rows, 3 * int(nvs.max())))
+        self._terms_all = Terms.empty(rods.n_rods, rods.n_vertices, 0, band_rows)
+        self._translation = translation_mode(model, layout, self.dofs, self.bodies)
         implicit = model.opt.integrator in (mujoco.mjtIntegrator.mjINT_IMPLICIT,
                                             mujoco.mjtIntegrator.mjINT_IMPLICITFAST)
         #: Whether MuJoCo's integrator takes qDeriv (else Euler: joint damping only).
@@ -136,15 +198,26 @@ class Holders:
     # -- the matrices -----------------------------------------------------------------
     def stiffness_columns(self, step) -> tuple[np.ndarray, np.ndarray]:
         """K's columns over the holder dofs at the step's state: k_f (n, k) = d grad_f / dq
-        [N/m or N/rad] over the rods' free dofs, k_q (k, k) = d^2 E / dq^2, by central
-        differences (each dof moved by +-eps on a scratch copy of MuJoCo's data)."""
+        [N/m or N/rad] over the rods' free dofs, k_q (k, k) = d^2 E / dq^2.
+
+        k_f = K_fh J + F: K_fh the Gauss-Newton blocks between free and held vertices (the
+        compiled step's, the same the band holds, so that a rigid translation of rod and
+        holders costs no force: K_ff 1 + K_fh 1 = 0), J the held points' motion per dof
+        and F what turning a clamp's frame does to the free vertices' force; J from
+        mj_jac (exact: K is stiff, a difference's round-off in J leaked momentum), F and k_q
+        by central differences (each dof moved by +-eps on a scratch copy of MuJoCo's
+        data). Where rods and holders float freely (:func:`translation_mode`), k_q is made
+        exact on the translations too (:func:`invariant`): linear momentum is kept.
+        """
         m, d, lay, fr = step.model, step.data, step.layout, step.frames
-        ds, xs = self._scratch, self._xs
-        k_f, k_q = np.zeros((lay.n, len(self.dofs))), np.zeros((len(self.dofs), len(self.dofs)))
+        ds, xs, x = self._scratch, self._xs, step.x
+        k = len(self.dofs)
+        jac, frame, k_q = np.zeros((3 * len(self.held), k)), np.zeros((lay.n, k)), np.zeros((k, k))
         ds.mocap_pos[:], ds.mocap_quat[:] = d.mocap_pos, d.mocap_quat
+        turns = bool(np.any(step.ends.body >= 0))
         for j, dof in enumerate(self.dofs):
             eps = self._eps[j]
-            grads, gens = [], []
+            gens, grads = [], []
             for sign in (1.0, -1.0):
                 ds.qpos[:] = d.qpos
                 self._dq[dof] = 1.0
@@ -154,15 +227,63 @@ class Holders:
                 mujoco.mj_comPos(m, ds)
                 gather_positions(lay.x0, ds.qpos, lay.qpos_adr, lay.free_vertex, ds.xpos, lay.moved_vertex,
                                  lay.moved_body, xs)
-                frames = Frames(fr.u.copy(), fr.t.copy(), fr.theta.copy(), fr.theta_end.copy())
+                frames = self._frames(fr)
                 evaluate(step.rods, frames, xs, lay.place, self._terms, step.ends, ds.xmat)
-                grads.append(self._terms.grad[lay.free_vertex].ravel())
                 q = step.reactions.generalized(m, ds, xs, self._terms.grad, frames.t, self._terms.end_moment,
                                                self._qfrc)
                 gens.append(q[self.dofs].copy())
-            k_f[:, j] = (grads[0] - grads[1]) / (2.0 * eps)
+                if turns and self._eps_rot[j]:
+                    # the clamp frames turned, the vertices kept: F's column
+                    evaluate(step.rods, self._frames(fr), x, lay.place, self._terms, step.ends, ds.xmat)
+                    grads.append(self._terms.grad[lay.free_vertex].ravel())
             k_q[:, j] = -(gens[0] - gens[1]) / (2.0 * eps)
+            if grads:
+                frame[:, j] = (grads[0] - grads[1]) / (2.0 * eps)
+        for c, v in enumerate(self.held):  # the held points' motion per dof, exact
+            mujoco.mj_jac(m, d, self._jacp, self._jacr, x[v], int(step.layout.body[v]))
+            jac[3 * c:3 * c + 3] = self._jacp[:, self.dofs]
+        k_f = self.held_blocks(step) @ jac + frame
+        if self._translation is not None:
+            k_q = invariant(k_q, k_f.T @ self._free_translation(step), self._translation)
         return k_f, k_q
+
+    def held_blocks(self, step) -> np.ndarray:
+        """K_fh (n, 3H) [N/m]: the Gauss-Newton Hessian blocks between the rods' free dofs and
+        the held vertices (with each held-both-ends rod's rank-one twist term), from one
+        compiled evaluation in which every vertex has a place in its rod's band."""
+        lay, t = step.layout, self._terms_all
+        evaluate(step.rods, self._frames(step.frames), step.x, self._place_all, t, step.ends, step.xmat, np.inf,
+                 self._bands, self._band_of_rod)
+        v_off, rows = step.rods.v_off, self._bands.shape[1] // 3 + 1
+        out = np.zeros((lay.n, 3 * len(self.held)))
+        for c, (h, rod) in enumerate(zip(self.held, self._rod_of_held)):
+            ab, ph = self._bands[rod], self._place_all[h]
+            for v in range(max(v_off[rod], h - rows), min(v_off[rod + 1], h + rows + 1)):
+                p = lay.place[v]
+                if p < 0:
+                    continue
+                pv = self._place_all[v]
+                for r in range(3):
+                    for a in range(3):
+                        out[3 * p + r, 3 * c + a] = band_entry(ab, 3 * pv + r, 3 * ph + a)
+            if rod in step.rod_tw:
+                lo, hi = v_off[rod], v_off[rod + 1]
+                free = lay.place[lo:hi] >= 0
+                g_f = np.zeros(lay.n)
+                g_f.reshape(-1, 3)[lay.place[lo:hi][free]] = t.g_tw[lo:hi][free]
+                out[:, 3 * c:3 * c + 3] += step.terms.coef[rod] * np.outer(g_f, t.g_tw[h])
+        return out
+
+    def _free_translation(self, step) -> np.ndarray:
+        """(n, 3): every free rod dof moved along x, y, z."""
+        out = np.zeros((step.layout.n, 3))
+        for a in range(3):
+            out[a::3, a] = 1.0
+        return out
+
+    @staticmethod
+    def _frames(fr: Frames) -> Frames:
+        return Frames(fr.u.copy(), fr.t.copy(), fr.theta.copy(), fr.theta_end.copy())
 
     def mass_block(self, m: mujoco.MjModel, d: mujoco.MjData) -> np.ndarray:
         """MuJoCo's mass matrix on the holders' trees, M[tree, tree] [kg or kg m^2], a

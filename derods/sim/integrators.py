@@ -280,9 +280,12 @@ class Implicit(Step):
         if not self.limited.any() or math.isinf(self.strain_limit):
             return 0
         inv_mass = self.inv_mass if inv_mass is None else inv_mass
-        n, _ = limit_strain(self.x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, inv_mass,
-                            self.layout.place, self.v, a, self.h, self.limited, self.strain_limit, PROJECTION_TOL,
-                            PROJECTION_MAX_ITER, self._xp)
+        try:
+            n, _ = limit_strain(self.x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, inv_mass,
+                                self.layout.place, self.v, a, self.h, self.limited, self.strain_limit,
+                                PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp)
+        except ValueError as err:  # the projection's banded Cholesky, in a state gone wild
+            self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)
         return n
 
     @property
