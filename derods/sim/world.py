@@ -265,7 +265,7 @@ class World:
             self._step.strain_limit = self.strain_limit
         self._model, self._data, self._layout = model, data, layout
         #: Where compile's time went [s]: adding the rods to the spec, MuJoCo's compile
-        #: (its body-dof sparsity sorts a row of all nv dofs by insertion: nv^2 / 4 steps,
+        #: (its body-dof sparsity sorts a row of all nv dofs by insertion: nv^2 / 2 moves,
         #: ~2 s at 96,000 dofs), and the rest (data, layout, rods, the step).
         self.compile_times = {"rods_to_spec": t1 - t0, "mujoco_compile": t2 - t1,
                               "rest": time.perf_counter() - t2}
