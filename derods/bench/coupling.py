@@ -56,17 +56,28 @@ def tip_mass_frequency(alpha: float, line_density: float, length: float, mu: flo
 
 
 def held_world(p, mass: float, joint_damping: float = 0.0) -> World:
-    """The cantilever of ``p`` with a free body of ``mass`` [kg] pinned to its tip (its free
-    joint damped by ``joint_damping`` [N s/m], 0 by default)."""
+    """The cantilever of ``p`` with a free body "bob" of ``mass`` [kg] pinned to its tip (its
+    free joint damped by ``joint_damping`` [N s/m], 0 by default)."""
+    return rod_and_body(p, "bob", "free", "pin", mass, joint_damping)
+
+
+def rod_and_body(p, name: str, joint: str, end: str, mass: float, joint_damping: float = 0.0) -> World:
+    """The rod of ``p`` along +x from (0, 0, 1) m, clamped to the world at its start, its end
+    held (``end``: "pin" or "clamp") by a body ``name`` of ``mass`` [kg], a small sphere that
+    touches nothing, on a free joint or a slide along the rod (``joint``: "free" or
+    "slide") damped by ``joint_damping``; no gravity."""
     x = shapes.cantilever(p.length, p.n_edges, start=(0.0, 0.0, 1.0))
     spec = mujoco.MjSpec()
-    bob = spec.worldbody.add_body(name="bob", pos=x[-1])
-    joint = bob.add_freejoint()
-    joint.damping = [joint_damping, 0.0, 0.0]
-    bob.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[BOB_RADIUS, 0, 0], mass=mass, contype=0,
-                 conaffinity=0)
+    body = spec.worldbody.add_body(name=name, pos=x[-1])
+    if joint == "slide":
+        dof = body.add_joint(type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[1.0, 0.0, 0.0])
+    else:
+        dof = body.add_freejoint()
+    dof.damping = [joint_damping, 0.0, 0.0]
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[BOB_RADIUS, 0, 0], mass=mass, contype=0,
+                  conaffinity=0)
     world = World(spec, dt=p.dt, gravity=(0.0, 0.0, 0.0), mode=p.mode)
-    world.add_rod(Rod(x, p.material), "rod", start="clamp", end="pin", end_body="bob")
+    world.add_rod(Rod(x, p.material), "rod", start="clamp", end=end, end_body=name)
     world.compile()
     return world
 
@@ -129,24 +140,11 @@ SWEEP_MASSES = (1e-3, 1e-2, 1e-1, 1.0, 1e1, 1e2, 1e3, 1e4)
 
 
 def clamped_world(p, scene: str, mass: float) -> World:
-    """The rod of ``p`` along +x from (0, 0, 1) m, clamped to the world at its start and to
-    a body of ``mass`` [kg] at its end: on a slide joint along the rod ("slide") or a free
-    joint ("free"); no gravity."""
+    """:func:`rod_and_body` with its end clamped to a body "holder" of ``mass`` [kg] on a
+    slide along the rod ("slide") or a free joint ("free")."""
     if scene not in SCENES:
         raise ValueError(f"scene must be one of {SCENES}, got {scene!r}")
-    x = shapes.cantilever(p.length, p.n_edges, start=(0.0, 0.0, 1.0))
-    spec = mujoco.MjSpec()
-    body = spec.worldbody.add_body(name="holder", pos=x[-1])
-    if scene == "slide":
-        body.add_joint(type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[1.0, 0.0, 0.0])
-    else:
-        body.add_freejoint()
-    body.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[BOB_RADIUS, 0, 0], mass=mass, contype=0,
-                  conaffinity=0)
-    world = World(spec, dt=p.dt, gravity=(0.0, 0.0, 0.0), mode=p.mode)
-    world.add_rod(Rod(x, p.material), "rod", start="clamp", end="clamp", end_body="holder")
-    world.compile()
-    return world
+    return rod_and_body(p, "holder", scene, "clamp", mass)
 
 
 def perturbed(p, scene: str, mass: float, steps: int = 300, offset: float = 1e-6) -> dict:
