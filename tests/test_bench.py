@@ -177,4 +177,4 @@ def test_holders_keep_no_dense_matrix_of_the_whole_model():
     assert all(a.size < m.nv ** 2 for a in vars(holders).values() if isinstance(a, np.ndarray))
     full = np.zeros((m.nv, m.nv))
     mujoco.mj_fullM(m, d, full)
-    np.testing.assert_allclose(holders.mass_block(m, d), full[np.ix_(holders.dofs, holders.dofs)], rtol=1e-12)
+    np.testing.assert_allclose(holders._dynamics.mass(m, d, holders.tree), full[np.ix_(holders.tree, holders.tree)], rtol=1e-12)

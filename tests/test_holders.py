@@ -8,7 +8,7 @@ import pytest
 
 from derods import bench
 from derods.bench import coupling
-from derods.sim import holders
+from derods.sim import holders, trees
 
 
 @pytest.mark.parametrize("scene", coupling.SCENES)
@@ -42,7 +42,7 @@ def test_mujoco_velocity_derivative_is_its_damping_and_servo_gain():
     m = mujoco.MjModel.from_xml_string(xml)
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
-    holders.smooth_vel(m, d, False)
+    trees.smooth_vel(m, d, False)
     diag = [d.qDeriv[m.D_rowadr[i] + list(m.D_colind[m.D_rowadr[i]:m.D_rowadr[i] + m.D_rownnz[i]]).index(i)]
             for i in range(m.nv)]
     np.testing.assert_array_equal(diag, [-0.3, -2.0])

@@ -42,40 +42,18 @@ reproduces a_q exactly); trees with no rod attached stay MuJoCo's alone.
 
 from __future__ import annotations
 
-import ctypes
-import glob
-import os
-
 import mujoco
 import numpy as np
 
 from .._numba.coupling import gather_positions
 from ..stencil import ring_order
 from ..step import Frames, Terms, evaluate
+from .trees import TreeDynamics, tree_dofs
 
 #: The central-difference step for K's columns [relative to the shortest edge for a
 #: translation, in rad for a rotation]: the gradient is smooth; round-off stays below
 #: 1e-8 of K.
 FD_STEP = 1e-6
-
-
-def smooth_vel(model: mujoco.MjModel, data: mujoco.MjData, bias: bool) -> None:
-    """MuJoCo's d (qfrc_actuator + qfrc_passive [- qfrc_bias]) / d qvel into data.qDeriv
-    (sparse, MuJoCo's D layout), as its implicit integrators take it: MuJoCo's own
-    mjd_smooth_vel, exported by libmujoco but not by the Python bindings."""
-    global _MJD_SMOOTH_VEL
-    if _MJD_SMOOTH_VEL is None:
-        libs = glob.glob(os.path.join(os.path.dirname(mujoco.__file__), "libmujoco*"))
-        if not libs:
-            raise RuntimeError("the MuJoCo library was not found next to the mujoco package: the coupled "
-                               "solve of bodies that MuJoCo damps implicitly needs its mjd_smooth_vel")
-        fn = ctypes.CDLL(libs[0]).mjd_smooth_vel
-        fn.argtypes, fn.restype = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int], None
-        _MJD_SMOOTH_VEL = fn
-    _MJD_SMOOTH_VEL(model._address, data._address, int(bias))
-
-
-_MJD_SMOOTH_VEL = None
 
 
 def chain_dofs(model: mujoco.MjModel, body: int) -> np.ndarray:
@@ -85,16 +63,6 @@ def chain_dofs(model: mujoco.MjModel, body: int) -> np.ndarray:
     while b > 0:
         dofs += range(model.body_dofadr[b], model.body_dofadr[b] + model.body_dofnum[b])
         b = model.body_parentid[b]
-    return np.array(sorted(dofs), dtype=np.int64)
-
-
-def tree_dofs(model: mujoco.MjModel, bodies) -> np.ndarray:
-    """Every dof of the kinematic trees the given bodies belong to, sorted, int64."""
-    dofs: set[int] = set()
-    for b in bodies:
-        t = int(model.body_treeid[b])
-        if t >= 0:
-            dofs.update(range(model.tree_dofadr[t], model.tree_dofadr[t] + model.tree_dofnum[t]))
     return np.array(sorted(dofs), dtype=np.int64)
 
 
@@ -167,8 +135,6 @@ class Holders:
         self._xs = np.zeros_like(layout.x0)
         self._qfrc = np.zeros(model.nv)
         self._dq = np.zeros(model.nv)
-        self._unit = np.zeros(model.nv)
-        self._column = np.zeros(model.nv)
         edge = float(np.min(rods.rest_len))
         self._eps_rot = np.array([rotational(model, int(j)) for j in self.dofs])
         self._eps = np.where(self._eps_rot, FD_STEP, FD_STEP * edge)
@@ -186,11 +152,7 @@ class Holders:
         self._bands = np.zeros((rods.n_rods, band_rows, 3 * int(nvs.max())))
         self._terms_all = Terms.empty(rods.n_rods, rods.n_vertices, 0, band_rows)
         self._translation = translation_mode(model, layout, self.dofs, self.bodies)
-        implicit = model.opt.integrator in (mujoco.mjtIntegrator.mjINT_IMPLICIT,
-                                            mujoco.mjtIntegrator.mjINT_IMPLICITFAST)
-        #: Whether MuJoCo's integrator takes qDeriv (else Euler: joint damping only).
-        self._implicit = implicit
-        self._bias = int(model.opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICIT)
+        self._dynamics = TreeDynamics(model)
 
     def __bool__(self) -> bool:
         return len(self.dofs) > 0
@@ -285,36 +247,6 @@ class Holders:
     def _frames(fr: Frames) -> Frames:
         return Frames(fr.u.copy(), fr.t.copy(), fr.theta.copy(), fr.theta_end.copy())
 
-    def mass_block(self, m: mujoco.MjModel, d: mujoco.MjData) -> np.ndarray:
-        """MuJoCo's mass matrix on the holders' trees, M[tree, tree] [kg or kg m^2], a
-        column per dof through mj_mulM (a dense nv x nv matrix would not fit a large world)."""
-        mass = np.empty((len(self.tree), len(self.tree)))
-        for j, dof in enumerate(self.tree):
-            self._unit[dof] = 1.0
-            mujoco.mj_mulM(m, d, self._column, self._unit)
-            self._unit[dof] = 0.0
-            mass[:, j] = self._column[self.tree]
-        return mass
-
-    def damping_block(self, m: mujoco.MjModel, d: mujoco.MjData) -> np.ndarray:
-        """The velocity derivative MuJoCo's integrator solves with on the holders' trees,
-        D[tree, tree] [N s/m or N m s]: qDeriv (mjd_smooth_vel) for the implicit ones, minus
-        the joint damping for Euler's (unless disabled)."""
-        k = len(self.tree)
-        if not self._implicit:
-            if m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_EULERDAMP:
-                return np.zeros((k, k))
-            return -np.diag(m.dof_damping[self.tree])
-        smooth_vel(m, d, self._bias)
-        out = np.zeros((k, k))
-        for i, dof in enumerate(self.tree):
-            adr, nnz = int(m.D_rowadr[dof]), int(m.D_rownnz[dof])
-            cols = m.D_colind[adr:adr + nnz]
-            inside = np.searchsorted(self.tree, cols)
-            ok = (inside < k) & (self.tree[np.minimum(inside, k - 1)] == cols)
-            out[i, inside[ok]] = d.qDeriv[adr:adr + nnz][ok]
-        return out
-
     # -- the step ---------------------------------------------------------------------
     def solve(self, step) -> None:
         """Couple the step's rods to their holders: replace step.a0 (the rods'
@@ -327,15 +259,12 @@ class Holders:
         v_q = d.qvel[self.dofs]
         y = step.system.solve(s * k_f)  # A^-1 s K_fq, (n, k)
         y0 = step.a0 - (b + h) / s * (y @ v_q)
-        mass, damp = self.mass_block(m, d), self.damping_block(m, d)
-        lhs = mass - h * damp
+        metric = self._dynamics.metric(m, d, self.tree)
+        lhs = metric.copy()
         c = self._in_tree
         lhs[np.ix_(c, c)] += s * k_q - s * (k_f.T @ y)
         force = d.qfrc_smooth[self.tree] + d.qfrc_constraint[self.tree]
         force[c] -= (b + h) * (k_f.T @ step.v + k_q @ v_q) + s * (k_f.T @ y0)
         a_t = np.linalg.solve(lhs, force)
         step.a0[:] = y0 - y @ a_t[c]
-        d.qacc[self.tree] = a_t
-        # MuJoCo's integrator solves (M - h D) qacc = qfrc_smooth + qfrc_constraint; on the
-        # holders' trees (M and D block diagonal over trees) this force gives a_t back.
-        d.qfrc_constraint[self.tree] = (mass - h * damp) @ a_t - d.qfrc_smooth[self.tree]
+        self._dynamics.write(d, self.tree, metric, a_t)

@@ -1,0 +1,102 @@
+"""MuJoCo's side of a coupled solve: kinematic trees, their inertia as MuJoCo's
+integrator takes it, and writing back an acceleration it reproduces.
+
+When derods solves the motion of some MuJoCo bodies together with its rods (bodies
+holding rod ends, :mod:`derods.sim.holders`; bodies touching rods, :mod:`derods.sim.contact`),
+it works on whole kinematic trees: MuJoCo's mass matrix M is block diagonal over trees,
+and so is the velocity derivative D its integrators treat implicitly (joint damping,
+actuators' kv; tendons or actuators spanning two trees aside). On a tree's dofs
+MuJoCo's integrator solves (M - h D) qacc = qfrc_smooth + qfrc_constraint; derods
+writes the force that makes that solve return the acceleration it found
+(:class:`TreeDynamics`).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import glob
+import os
+
+import mujoco
+import numpy as np
+
+_MJD_SMOOTH_VEL = None
+
+
+def smooth_vel(model: mujoco.MjModel, data: mujoco.MjData, bias: bool) -> None:
+    """MuJoCo's d (qfrc_actuator + qfrc_passive [- qfrc_bias]) / d qvel into data.qDeriv
+    (sparse, MuJoCo's D layout), as its implicit integrators take it: MuJoCo's own
+    mjd_smooth_vel, exported by libmujoco but not by the Python bindings."""
+    global _MJD_SMOOTH_VEL
+    if _MJD_SMOOTH_VEL is None:
+        libs = glob.glob(os.path.join(os.path.dirname(mujoco.__file__), "libmujoco*"))
+        if not libs:
+            raise RuntimeError("the MuJoCo library was not found next to the mujoco package: coupling rods to "
+                               "bodies that MuJoCo damps implicitly needs its mjd_smooth_vel")
+        fn = ctypes.CDLL(libs[0]).mjd_smooth_vel
+        fn.argtypes, fn.restype = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int], None
+        _MJD_SMOOTH_VEL = fn
+    _MJD_SMOOTH_VEL(model._address, data._address, int(bias))
+
+
+def tree_dofs(model: mujoco.MjModel, bodies) -> np.ndarray:
+    """Every dof of the kinematic trees the given bodies belong to, sorted, int64."""
+    dofs: set[int] = set()
+    for b in bodies:
+        t = int(model.body_treeid[b])
+        if t >= 0:
+            dofs.update(range(model.tree_dofadr[t], model.tree_dofadr[t] + model.tree_dofnum[t]))
+    return np.array(sorted(dofs), dtype=np.int64)
+
+
+class TreeDynamics:
+    """M and D of one model on a set of tree dofs (sorted, int64), and the write-back.
+    Scratch vectors are kept per model, so one instance serves any set of its dofs."""
+
+    def __init__(self, model: mujoco.MjModel):
+        self._unit = np.zeros(model.nv)
+        self._column = np.zeros(model.nv)
+        self.implicit = model.opt.integrator in (mujoco.mjtIntegrator.mjINT_IMPLICIT,
+                                                 mujoco.mjtIntegrator.mjINT_IMPLICITFAST)
+        self._bias = int(model.opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICIT)
+
+    def mass(self, m: mujoco.MjModel, d: mujoco.MjData, dofs: np.ndarray) -> np.ndarray:
+        """MuJoCo's mass matrix M[dofs, dofs] [kg or kg m^2], a column per dof through
+        mj_mulM (a dense nv x nv matrix would not fit a large world)."""
+        out = np.empty((len(dofs), len(dofs)))
+        for j, dof in enumerate(dofs):
+            self._unit[dof] = 1.0
+            mujoco.mj_mulM(m, d, self._column, self._unit)
+            self._unit[dof] = 0.0
+            out[:, j] = self._column[dofs]
+        return out
+
+    def damping(self, m: mujoco.MjModel, d: mujoco.MjData, dofs: np.ndarray) -> np.ndarray:
+        """The velocity derivative D[dofs, dofs] [N s/m or N m s] MuJoCo's integrator solves
+        with: qDeriv (mjd_smooth_vel) for the implicit ones, minus the joint damping for
+        Euler's (unless disabled)."""
+        k = len(dofs)
+        if not self.implicit:
+            if m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_EULERDAMP:
+                return np.zeros((k, k))
+            return -np.diag(m.dof_damping[dofs])
+        smooth_vel(m, d, self._bias)
+        out = np.zeros((k, k))
+        for i, dof in enumerate(dofs):
+            adr, nnz = int(m.D_rowadr[dof]), int(m.D_rownnz[dof])
+            cols = m.D_colind[adr:adr + nnz]
+            inside = np.searchsorted(dofs, cols)
+            ok = (inside < k) & (dofs[np.minimum(inside, k - 1)] == cols)
+            out[i, inside[ok]] = d.qDeriv[adr:adr + nnz][ok]
+        return out
+
+    def metric(self, m: mujoco.MjModel, d: mujoco.MjData, dofs: np.ndarray) -> np.ndarray:
+        """M - h D on dofs: the matrix MuJoCo's integrator solves with."""
+        return self.mass(m, d, dofs) - m.opt.timestep * self.damping(m, d, dofs)
+
+    @staticmethod
+    def write(d: mujoco.MjData, dofs: np.ndarray, metric: np.ndarray, qacc: np.ndarray) -> None:
+        """Set qacc on whole trees' dofs and the constraint force that makes MuJoCo's
+        integrator, solving (M - h D) qacc = qfrc_smooth + qfrc_constraint, return it."""
+        d.qacc[dofs] = qacc
+        d.qfrc_constraint[dofs] = metric @ qacc - d.qfrc_smooth[dofs]
