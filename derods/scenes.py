@@ -1,4 +1,5 @@
-"""The MJCF scenes that ship with derods: floor, box, table_edge, stairs, pegs, halfpipe, rail.
+"""The MJCF scenes that ship with derods: floor, box, table_edge, stairs, pegs, halfpipe, rail, head
+(the hair scene) and gripper (examples/grasp.py).
 
 They live in ``mjcf/`` at the top of the repository and are installed inside the
 package as ``derods.mjcf``, read here with :mod:`importlib.resources`, so an

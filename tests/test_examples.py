@@ -18,6 +18,7 @@ EXAMPLES = {
     "motor_coil": ["motor_coil.mp4"],
     "knot": ["knot.mp4"],
     "hair_turn": ["hair_turn.mp4"],
+    "grasp": ["grasp.mp4"],
 }
 
 

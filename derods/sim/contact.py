@@ -46,7 +46,9 @@ import numpy as np
 from .._numba import contact as _k
 from .._numba.contact_rows import correct_aref, rows_band
 from ..stencil import XX_BANDWIDTH
+from .._numba.banded import cholesky_into
 from .implicit import ImplicitSystem
+from .trees import TreeDynamics
 
 #: Width of a row's dof window that keeps the Hessian banded.
 WINDOW = XX_BANDWIDTH + 1
@@ -178,9 +180,21 @@ class ContactStep:
     rods' free dofs, -1 elsewhere; dof_off (n_rods + 1,): each rod's range of them.
     After :meth:`__call__`, ``force`` (n,) [N] holds the constraint force on the rod
     dofs.
+
+    Bodies touching rods: the dofs of a kinematic tree that a row binds to a rod (a
+    gripper's finger pressing on a cable) join the solve for that step, as one more
+    "rod" whose metric is MuJoCo's M - h D on the tree (:mod:`derods.sim.trees`) and
+    whose unconstrained acceleration is what MuJoCo's integrator would give it without
+    constraints. So a contact sees the rod's stiffness and the body's inertia at once
+    (MuJoCo alone would see a bare vertex mass, and a servo-driven finger would squeeze
+    through the rod); the tree's qacc is then written back. Trees of more dofs than the
+    band holds (``band_rows``), and ``excluded`` ones (solved elsewhere: holders), keep
+    MuJoCo's forces.
     """
 
-    def __init__(self, model: mujoco.MjModel, local_of_dof: np.ndarray, dof_off: np.ndarray, n: int):
+    def __init__(self, model: mujoco.MjModel, local_of_dof: np.ndarray, dof_off: np.ndarray, n: int,
+                 band_rows: int = WINDOW, excluded=()):
+        self.model = model
         self.is_sparse = bool(mujoco.mj_isSparse(model))
         self.nv = model.nv
         self.local_of_dof = np.ascontiguousarray(local_of_dof, dtype=np.int64)
@@ -188,17 +202,29 @@ class ContactStep:
         self.force = np.zeros(n)
         self.a = np.zeros(n)
         self._force_is_zero = True
+        # Each dof's tree if the tree may join a contact solve, else -1.
+        tree = np.full(model.nv, -1, dtype=np.int64)
+        for t in range(model.ntree):
+            lo, k = int(model.tree_dofadr[t]), int(model.tree_dofnum[t])
+            dofs = np.arange(lo, lo + k)
+            if 0 < k <= band_rows and np.all(self.local_of_dof[dofs] < 0) and t not in set(excluded):
+                tree[dofs] = t
+        self._dof_tree = tree
+        self.bodies = bool(np.any(tree >= 0))
+        self._dynamics = TreeDynamics(model) if self.bodies else None
+        self._band_rows = band_rows
 
     def __call__(self, data: mujoco.MjData, system: ImplicitSystem, a0: np.ndarray) -> np.ndarray | None:
         """The acceleration [m/s^2] (n,) with contacts, or None if no row touches a rod."""
         nefc = data.nefc
         if nefc:
-            touched = _k.contact_step(
-                self.is_sparse, nefc, self.nv, data.efc_J, data.efc_J_rownnz, data.efc_J_rowadr,
-                data.efc_J_colind, data.efc_type, data.efc_force, data.efc_aref, data.efc_R, data.efc_diagA,
-                SUPPORTED, self.local_of_dof, self.dof_off, WINDOW, system.k_band, system.a_band, system.lt, system.g,
-                system.tw_lo, system.tw_hi, system.tw_c, system.s, system.z, system.den, system.mass,
-                system.m_coef, a0, self.a, self.force, MAX_ITER, TOL)
+            trees = self._touching_trees(data) if self.bodies else ()
+            if len(trees):
+                touched = self._with_trees(data, system, a0, trees)
+            else:
+                touched = self._solve(data, system, a0, self.local_of_dof, self.dof_off, system.k_band,
+                                      system.a_band, system.lt, system.g, system.z, system.mass, a0, self.a,
+                                      self.force)
             if touched:
                 self._force_is_zero = False
                 return self.a
@@ -206,6 +232,52 @@ class ContactStep:
             self.force[:] = 0.0
             self._force_is_zero = True
         return None
+
+    def _solve(self, data, system, a0, local_of_dof, dof_off, k_band, a_band, lt, g, z, mass, a0_all, a_out,
+               force_out) -> int:
+        return _k.contact_step(
+            self.is_sparse, data.nefc, self.nv, data.efc_J, data.efc_J_rownnz, data.efc_J_rowadr,
+            data.efc_J_colind, data.efc_type, data.efc_force, data.efc_aref, data.efc_R, data.efc_diagA,
+            SUPPORTED, local_of_dof, dof_off, WINDOW, k_band, a_band, lt, g, system.tw_lo, system.tw_hi,
+            system.tw_c, system.s, z, system.den, mass, system.m_coef, a0_all, a_out, force_out, MAX_ITER, TOL)
+
+    def _touching_trees(self, data: mujoco.MjData) -> np.ndarray:
+        """The trees that a constraint row binds to a rod dof this step (sorted)."""
+        from .._numba.contact_rows import efc_triplets
+
+        row, col, _ = efc_triplets(self.is_sparse, data.nefc, self.nv, data.efc_J, data.efc_J_rownnz,
+                                   data.efc_J_rowadr, data.efc_J_colind)
+        on_rod = np.zeros(data.nefc, dtype=bool)
+        on_rod[row[self.local_of_dof[col] >= 0]] = True
+        trees = self._dof_tree[col[on_rod[row]]]
+        return np.unique(trees[trees >= 0])
+
+    def _with_trees(self, data, system, a0, trees) -> int:
+        """The contact solve with the given trees' dofs appended to the rods' (see the class)."""
+        m, n, s = self.model, len(a0), system.s
+        sizes = m.tree_dofnum[trees].astype(np.int64)
+        dofs = np.concatenate([np.arange(m.tree_dofadr[t], m.tree_dofadr[t] + m.tree_dofnum[t]) for t in trees])
+        k = len(dofs)
+        metric = self._dynamics.metric(m, data, dofs)  # block diagonal over the trees
+        rows = system.a_band.shape[0]
+        band = np.zeros((rows, k))
+        for dd in range(min(rows, k)):
+            band[dd, :k - dd] = np.diagonal(metric, -dd)
+        lt = np.zeros((k, rows))
+        cholesky_into(band, lt)
+        local = self.local_of_dof.copy()
+        local[dofs] = n + np.arange(k)
+        dof_off = np.concatenate([self.dof_off, n + np.cumsum(sizes)])
+        zeros = np.zeros(k)
+        a_b0 = np.linalg.solve(metric, data.qfrc_smooth[dofs])  # no constraint force on the trees
+        a_out, force_out = np.zeros(n + k), np.zeros(n + k)
+        touched = self._solve(data, system, a0, local, dof_off, np.hstack([system.k_band, band / s]),
+                              np.hstack([system.a_band, band]), np.vstack([system.lt, lt]),
+                              np.concatenate([system.g, zeros]), np.concatenate([system.z, zeros]),
+                              np.concatenate([system.mass, zeros]), np.concatenate([a0, a_b0]), a_out, force_out)
+        self.a[:], self.force[:] = a_out[:n], force_out[:n]
+        self._dynamics.write(data, dofs, metric, a_out[n:])
+        return touched
 
 
 class ReferenceCorrection:

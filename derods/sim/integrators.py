@@ -198,7 +198,11 @@ class Implicit(Step):
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
-        self.contact = ContactStep(self.model, self.layout.local_of_dof, self.layout.dof_off, self.layout.n)
+        #: Held vertices whose holders have dofs, coupled implicitly (derods.sim.holders).
+        self.holders = Holders(self.model, self.layout, self.rods, self.layout.band_rows, self.reactions)
+        held_trees = {int(self.model.body_treeid[b]) for b in self.holders.bodies}
+        self.contact = ContactStep(self.model, self.layout.local_of_dof, self.layout.dof_off, self.layout.n,
+                                   self.layout.band_rows, held_trees)
         rod_flex = [mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_FLEX, e.name) for e in self.entries]
         margin = bool(np.any(self.model.flex_margin[rod_flex] > 0))
         self.reference = ReferenceCorrection(self.model, self.data, margin)
@@ -217,8 +221,6 @@ class Implicit(Step):
         #: Rods projected back to their rest lengths in the last step (see STRAIN_LIMIT).
         self.n_projected = 0
         self.strain_limit = STRAIN_LIMIT
-        #: Held vertices whose holders have dofs, coupled implicitly (derods.sim.holders).
-        self.holders = Holders(self.model, lay, self.rods, lay.band_rows, self.reactions)
 
     def step(self) -> None:
         m, d, lay = self.model, self.data, self.layout
