@@ -2,11 +2,12 @@
 stiffness and resolution (issue "rods coupled to MuJoCo bodies of any mass").
 
 A rod (L = 1 m, r = 1 cm, rho = 1000 kg/m^3: 0.31 kg) clamped to the world at one end
-and to a body at the other, the body on a slide joint along the rod or on a free joint
+and to a body at the other, the body on a slide joint along the rod, on a free joint or
+on an arm turning about a vertical hinge 0.1 m beyond the tip
 (:func:`derods.bench.coupling.clamped_world`), moved 1e-6 m from rest and stepped 300
-times at dt (:func:`derods.bench.coupling.perturbed`: stable = no divergence, and
-the energy, elastic and kinetic, never above 1.01 times its start). Prints one line per (scene, n, E,
-mass) and the count of unstable runs. Target: none, at dt = 1e-2, for bodies of 1e-3 to
+times at dt (:func:`derods.bench.coupling.perturbed`: stable = no divergence, and the
+energy, elastic and kinetic, never above 1.01 times its start). Prints one line per
+(scene, n, E, mass) and the count of unstable runs. Target: none, at dt = 1e-2, for bodies of 1e-3 to
 1e4 kg, n = 20 and 100, E = 1e5 to 1e10.
 
 Run: .venv/bin/python benchmarks/bench_holders.py [--n 20,100] [--young 1e5,...,1e10]

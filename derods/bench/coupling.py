@@ -64,13 +64,16 @@ def held_world(p, mass: float, joint_damping: float = 0.0) -> World:
 def rod_and_body(p, name: str, joint: str, end: str, mass: float, joint_damping: float = 0.0) -> World:
     """The rod of ``p`` along +x from (0, 0, 1) m, clamped to the world at its start, its end
     held (``end``: "pin" or "clamp") by a body ``name`` of ``mass`` [kg], a small sphere that
-    touches nothing, on a free joint or a slide along the rod (``joint``: "free" or
-    "slide") damped by ``joint_damping``; no gravity."""
+    touches nothing, on a free joint, a slide along the rod or a vertical hinge LEVER
+    beyond the tip (``joint``: "free", "slide", "hinge") damped by ``joint_damping``; no
+    gravity."""
     x = shapes.cantilever(p.length, p.n_edges, start=(0.0, 0.0, 1.0))
     spec = mujoco.MjSpec()
     body = spec.worldbody.add_body(name=name, pos=x[-1])
     if joint == "slide":
         dof = body.add_joint(type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[1.0, 0.0, 0.0])
+    elif joint == "hinge":
+        dof = body.add_joint(type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0.0, 0.0, 1.0], pos=[LEVER, 0.0, 0.0])
     else:
         dof = body.add_freejoint()
     dof.damping = [joint_damping, 0.0, 0.0]
@@ -130,8 +133,10 @@ def coupling(p, periods: float = 3.0) -> list[dict]:
 
 
 #: The held-body scenes of :func:`perturbed`: a clamped end on a body that slides along the
-#: rod, or on a free body.
-SCENES = ("slide", "free")
+#: rod, on a free body, or on an arm that turns about a vertical hinge 0.1 m beyond the tip.
+SCENES = ("slide", "free", "hinge")
+#: The hinge scene's lever [m]: its axis passes this far beyond the rod's tip.
+LEVER = 0.1
 #: How far the energy of :func:`perturbed` may rise over its start (round-off and the
 #: linearization's error; an unstable mode grows it by orders of magnitude).
 ENERGY_TOLERANCE = 1.01
@@ -141,7 +146,7 @@ SWEEP_MASSES = (1e-3, 1e-2, 1e-1, 1.0, 1e1, 1e2, 1e3, 1e4)
 
 def clamped_world(p, scene: str, mass: float) -> World:
     """:func:`rod_and_body` with its end clamped to a body "holder" of ``mass`` [kg] on a
-    slide along the rod ("slide") or a free joint ("free")."""
+    slide along the rod ("slide"), a free joint ("free") or a hinge ("hinge")."""
     if scene not in SCENES:
         raise ValueError(f"scene must be one of {SCENES}, got {scene!r}")
     return rod_and_body(p, "holder", scene, "clamp", mass)
@@ -149,7 +154,7 @@ def clamped_world(p, scene: str, mass: float) -> World:
 
 def perturbed(p, scene: str, mass: float, steps: int = 300, offset: float = 1e-6) -> dict:
     """Move the holder of :func:`clamped_world` by ``offset`` [m] (along each of its
-    translations) from rest and step: ``stable`` when nothing diverged and the energy
+    translations; the hinge's arm by that much at its lever) from rest and step: ``stable`` when nothing diverged and the energy
     (the rod's elastic energy and every body's kinetic energy) never rose above
     ENERGY_TOLERANCE times its start: nothing feeds the motion, backward Euler damps it,
     and an unstable mode grows exponentially. (The displacement is no measure: the stiff
@@ -159,9 +164,10 @@ def perturbed(p, scene: str, mass: float, steps: int = 300, offset: float = 1e-6
     world = clamped_world(p, scene, mass)
     m, d = world.model, world.data
     adr = m.jnt_qposadr[m.body("holder").jntadr[0]]
-    k = 1 if scene == "slide" else 3
+    k = 3 if scene == "free" else 1
+    unit = LEVER if scene == "hinge" else 1.0  # [m] per unit of the holder's coordinate
     rest = d.qpos[adr:adr + k].copy()
-    d.qpos[adr:adr + k] += offset
+    d.qpos[adr:adr + k] += offset / unit
     mujoco.mj_kinematics(m, d)
     energy, peak, note = [], 0.0, ""
     mv = np.zeros(m.nv)
@@ -171,7 +177,7 @@ def perturbed(p, scene: str, mass: float, steps: int = 300, offset: float = 1e-6
             kinetic = 0.5 * float(d.qvel @ mv)
             world.step()  # its first stage evaluates the rods at the state the kinetic energy saw
             energy.append(float(np.sum(world._step.terms.energy)) + kinetic)
-            peak = max(peak, float(np.max(np.abs(d.qpos[adr:adr + k] - rest))))
+            peak = max(peak, unit * float(np.max(np.abs(d.qpos[adr:adr + k] - rest))))
             if not np.isfinite(peak) or energy[-1] > ENERGY_TOLERANCE * energy[0]:
                 note = f"the energy rose {energy[-1] / energy[0]:.3g} times by step {i}"
                 break
