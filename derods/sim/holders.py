@@ -35,9 +35,14 @@ its linear momentum to 2e-10 (1.8e-3 .. 2e-2 with differenced columns). A clamp'
 second held vertex sits off its body's origin, and MuJoCo's Euler and implicitfast
 integrators do not keep the momentum of a spinning body with an off-centre mass
 (measured alone, no rods: 8e-4 .. 1e-3 over 200 steps; RK4 6e-12), which bounds a
-clamped pair's momentum the same way. The dofs solved are those of the kinematic trees the holders belong to
-(M is block diagonal over trees, so MuJoCo's own implicit solve of those rows then
-reproduces a_q exactly); trees with no rod attached stay MuJoCo's alone.
+clamped pair's momentum the same way.
+
+The dofs solved are those of the kinematic trees the holders belong to (M is block
+diagonal over trees, so MuJoCo's own implicit solve of those rows then reproduces a_q
+exactly, :mod:`derods.sim.trees`); trees with no rod attached stay MuJoCo's alone. The
+differences evaluate every rod of the world (2 per holder dof, 4 for a rotation when
+clamps turn): cheap for the rods a robot holds, not meant for a head of hair on a body
+with dofs (hair rides a mocap head).
 """
 
 from __future__ import annotations
