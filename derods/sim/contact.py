@@ -203,16 +203,13 @@ class ContactStep:
         self.a = np.zeros(n)
         self._force_is_zero = True
         # Each dof's tree if the tree may join a contact solve, else -1.
-        tree = np.full(model.nv, -1, dtype=np.int64)
-        for t in range(model.ntree):
-            lo, k = int(model.tree_dofadr[t]), int(model.tree_dofnum[t])
-            dofs = np.arange(lo, lo + k)
-            if 0 < k <= band_rows and np.all(self.local_of_dof[dofs] < 0) and t not in set(excluded):
-                tree[dofs] = t
-        self._dof_tree = tree
-        self.bodies = bool(np.any(tree >= 0))
+        dof_tree = model.dof_treeid.astype(np.int64)
+        joins = (model.tree_dofnum > 0) & (model.tree_dofnum <= band_rows)
+        joins[dof_tree[self.local_of_dof >= 0]] = False  # the rods' own trees
+        joins[list(excluded)] = False
+        self._dof_tree = np.where(joins[dof_tree], dof_tree, -1)
+        self.bodies = bool(np.any(self._dof_tree >= 0))
         self._dynamics = TreeDynamics(model) if self.bodies else None
-        self._band_rows = band_rows
 
     def __call__(self, data: mujoco.MjData, system: ImplicitSystem, a0: np.ndarray) -> np.ndarray | None:
         """The acceleration [m/s^2] (n,) with contacts, or None if no row touches a rod."""
@@ -222,7 +219,7 @@ class ContactStep:
             if len(trees):
                 touched = self._with_trees(data, system, a0, trees)
             else:
-                touched = self._solve(data, system, a0, self.local_of_dof, self.dof_off, system.k_band,
+                touched = self._solve(data, system, self.local_of_dof, self.dof_off, system.k_band,
                                       system.a_band, system.lt, system.g, system.z, system.mass, a0, self.a,
                                       self.force)
             if touched:
@@ -233,13 +230,15 @@ class ContactStep:
             self._force_is_zero = True
         return None
 
-    def _solve(self, data, system, a0, local_of_dof, dof_off, k_band, a_band, lt, g, z, mass, a0_all, a_out,
+    def _solve(self, data, system, local_of_dof, dof_off, k_band, a_band, lt, g, z, mass, a0, a_out,
                force_out) -> int:
+        """The compiled contact stage over the given dofs (the rods', or the rods' and some
+        trees': arrays of that length), into a_out and force_out; 1 if a row touched them."""
         return _k.contact_step(
             self.is_sparse, data.nefc, self.nv, data.efc_J, data.efc_J_rownnz, data.efc_J_rowadr,
             data.efc_J_colind, data.efc_type, data.efc_force, data.efc_aref, data.efc_R, data.efc_diagA,
             SUPPORTED, local_of_dof, dof_off, WINDOW, k_band, a_band, lt, g, system.tw_lo, system.tw_hi,
-            system.tw_c, system.s, z, system.den, mass, system.m_coef, a0_all, a_out, force_out, MAX_ITER, TOL)
+            system.tw_c, system.s, z, system.den, mass, system.m_coef, a0, a_out, force_out, MAX_ITER, TOL)
 
     def _touching_trees(self, data: mujoco.MjData) -> np.ndarray:
         """The trees that a constraint row binds to a rod dof this step (sorted)."""
@@ -271,7 +270,7 @@ class ContactStep:
         zeros = np.zeros(k)
         a_b0 = np.linalg.solve(metric, data.qfrc_smooth[dofs])  # no constraint force on the trees
         a_out, force_out = np.zeros(n + k), np.zeros(n + k)
-        touched = self._solve(data, system, a0, local, dof_off, np.hstack([system.k_band, band / s]),
+        touched = self._solve(data, system, local, dof_off, np.hstack([system.k_band, band / s]),
                               np.hstack([system.a_band, band]), np.vstack([system.lt, lt]),
                               np.concatenate([system.g, zeros]), np.concatenate([system.z, zeros]),
                               np.concatenate([system.mass, zeros]), np.concatenate([a0, a_b0]), a_out, force_out)
