@@ -213,19 +213,30 @@ def frequency(p: CaseParams, periods: int = 4) -> list[dict]:
     x0 = rest_x.copy()
     x0[:, 2] += 0.01 * p.length * shape / shape[-1]
     world.set_positions(0, x0)
-    n_steps = int(math.ceil(periods / ref / p.dt))
+    z, stable, note, wall = step_recording(world, int(math.ceil(periods / ref / p.dt)), tip_height)
+    measured = crossing_frequency(z, p.dt) if stable else None
+    return [_record("frequency", p, world, measured, ref, stable, wall, note=note)]
+
+
+def tip_height(x: np.ndarray) -> float:
+    """The last vertex's height above z = 1 m [m] of positions x (n_vertices, 3)."""
+    return float(x[-1, 2] - 1.0)
+
+
+def step_recording(world, n_steps: int, height) -> tuple[np.ndarray, bool, str, float]:
+    """Step ``world`` n_steps times recording height(positions of its first rod) [m];
+    returns (those heights (n_steps,), stable, the divergence's message or "", wall time
+    [s]). After a divergence the heights past it are undefined."""
     z = np.empty(n_steps)
     t0 = time.perf_counter()
-    stable, measured, note = True, None, ""
+    stable, note = True, ""
     try:
         for k in range(n_steps):
             world.step()
-            z[k] = world.positions()[-1, 2] - 1.0
-        measured = crossing_frequency(z, p.dt)
+            z[k] = height(world.positions())
     except DivergenceError as err:
         stable, note = False, str(err)
-    wall = time.perf_counter() - t0
-    return [_record("frequency", p, world, measured, ref, stable, wall, note=note)]
+    return z, stable, note, time.perf_counter() - t0
 
 
 def crossing_frequency(z: np.ndarray, dt: float) -> float | None:
@@ -307,13 +318,9 @@ def _swing(variant: str, p: CaseParams, world, f1: float, periods: int, height, 
     """Step ``world`` for ``periods`` + 1/2 periods of f1 [Hz], recording height(positions)
     [m]; the oscillation record of what it kept (with ``extra`` fields)."""
     n_steps = int(math.ceil((periods + 0.5) / f1 / p.dt))
-    z = np.empty(n_steps)
-    t0 = time.perf_counter()
-    stable, measured, freq, note = True, None, None, ""
-    try:
-        for k in range(n_steps):
-            world.step()
-            z[k] = height(world.positions())
+    z, stable, note, wall = step_recording(world, n_steps, height)
+    measured, freq = None, None
+    if stable:
         turns, amp = swing_amplitudes(z)
         if len(amp) >= 3 and amp[0] > 0:
             # turning points two apart are one period apart
@@ -322,9 +329,6 @@ def _swing(variant: str, p: CaseParams, world, f1: float, periods: int, height, 
             freq = float(1.0 / (2.0 * np.mean(np.diff(turns)) * p.dt))
         else:
             note = f"{len(turns)} turning points in {n_steps} steps: the tip did not swing"
-    except DivergenceError as err:
-        stable, note = False, str(err)
-    wall = time.perf_counter() - t0
     return _record("oscillation", p, world, measured, 1.0, stable, wall, variant=variant, frequency=freq,
                    frequency_ref=f1, frequency_error=None if freq is None else freq / f1 - 1.0, periods=periods,
                    note=note, **extra)

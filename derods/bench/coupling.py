@@ -19,7 +19,6 @@ every body of 1e-3 .. 1e3 times the rod's mass diverged at dt = 1e-2.
 from __future__ import annotations
 
 import math
-import time
 
 import mujoco
 import numpy as np
@@ -101,7 +100,7 @@ def _bend(world: World, x: np.ndarray, length: float) -> None:
 
 def coupling(p, periods: float = 3.0) -> list[dict]:
     """One record per body mass in MASS_RATIOS (see the module docstring)."""
-    from .cases import _record, crossing_frequency  # the harness's record layout and measure
+    from .cases import _record, crossing_frequency, step_recording, tip_height  # the harness's
 
     mat = p.material
     rod_mass = mat.line_density * p.length
@@ -112,21 +111,12 @@ def coupling(p, periods: float = 3.0) -> list[dict]:
         rest = shapes.cantilever(p.length, p.n_edges, start=(0.0, 0.0, 1.0))
         _bend(world, rest, p.length)
         n_steps = int(math.ceil((periods + 0.25) / ref / p.dt))
-        z = np.empty(n_steps)
-        t0 = time.perf_counter()
-        stable, measured, note = True, None, ""
-        try:
-            for k in range(n_steps):
-                world.step()
-                z[k] = world.positions("rod")[-1, 2] - 1.0
-            measured = crossing_frequency(z, p.dt)
-            if measured is None:
-                note = f"fewer than two upward crossings in {n_steps} steps"
-        except DivergenceError as err:
-            stable, note = False, str(err)
+        z, stable, note, wall = step_recording(world, n_steps, tip_height)
+        measured = crossing_frequency(z, p.dt) if stable else None
+        if stable and measured is None:
+            note = f"fewer than two upward crossings in {n_steps} steps"
         if stable and not np.all(np.isfinite(z)) or (stable and np.max(np.abs(z)) > 0.5 * p.length):
             stable, note = False, f"the tip left the swing: |z| up to {np.nanmax(np.abs(z)):.3g} m"
-        wall = time.perf_counter() - t0
         out.append(_record("coupling", p, world, measured if stable else None, ref, stable, wall, mass_ratio=mu,
                            body_mass=mu * rod_mass, note=note))
     return out
