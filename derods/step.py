@@ -161,6 +161,10 @@ class Frames:
         return cls(np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(t, dtype=float), theta,
                    np.zeros((n_rods, 2)))
 
+    def copy(self) -> "Frames":
+        """An independent copy (the compiled step advances frames in place)."""
+        return Frames(self.u.copy(), self.t.copy(), self.theta.copy(), self.theta_end.copy())
+
 
 @dataclass(frozen=True)
 class EndBodies:

@@ -136,8 +136,3 @@ class Reactions:
         for s, b in enumerate(self.bodies):
             mujoco.mj_applyFT(model, data, self.force[s], self.torque[s], point[s], int(b), out)
         return out
-
-    @property
-    def applied(self) -> np.ndarray:
-        """The generalized force [N or N m] (nv,) the last :meth:`apply` put on the holders."""
-        return self._applied

@@ -48,7 +48,7 @@ from .._numba.contact_rows import correct_aref, rows_band
 from ..stencil import XX_BANDWIDTH
 from .._numba.banded import cholesky_into
 from .implicit import ImplicitSystem
-from .trees import TreeDynamics
+from .trees import TreeDynamics, tree_dofs
 
 #: Width of a row's dof window that keeps the Hessian banded.
 WINDOW = XX_BANDWIDTH + 1
@@ -206,7 +206,7 @@ class ContactStep:
         dof_tree = model.dof_treeid.astype(np.int64)
         joins = (model.tree_dofnum > 0) & (model.tree_dofnum <= band_rows)
         joins[dof_tree[self.local_of_dof >= 0]] = False  # the rods' own trees
-        joins[list(excluded)] = False
+        joins[np.asarray(excluded, dtype=np.int64)] = False
         self._dof_tree = np.where(joins[dof_tree], dof_tree, -1)
         self.bodies = bool(np.any(self._dof_tree >= 0))
         self._dynamics = TreeDynamics(model) if self.bodies else None
@@ -255,7 +255,7 @@ class ContactStep:
         """The contact solve with the given trees' dofs appended to the rods' (see the class)."""
         m, n, s = self.model, len(a0), system.s
         sizes = m.tree_dofnum[trees].astype(np.int64)
-        dofs = np.concatenate([np.arange(m.tree_dofadr[t], m.tree_dofadr[t] + m.tree_dofnum[t]) for t in trees])
+        dofs = tree_dofs(m, trees)
         k = len(dofs)
         metric = self._dynamics.metric(m, data, dofs)  # block diagonal over the trees
         rows = system.a_band.shape[0]

@@ -52,8 +52,8 @@ import numpy as np
 
 from .._numba.coupling import gather_positions
 from ..stencil import ring_order
-from ..step import Frames, Terms, evaluate
-from .trees import TreeDynamics, tree_dofs
+from ..step import Terms, evaluate
+from .trees import TreeDynamics, tree_dofs, trees_of
 
 #: The central-difference step for K's columns [relative to the shortest edge for a
 #: translation, in rad for a rotation]: the gradient is smooth; round-off stays below
@@ -131,7 +131,9 @@ class Holders:
         self.bodies = np.array(bodies, dtype=np.int64)
         self.dofs = np.unique(np.concatenate([chain_dofs(model, b) for b in bodies])) if bodies \
             else np.zeros(0, dtype=np.int64)
-        self.tree = tree_dofs(model, bodies)
+        #: The trees of these bodies, and all their dofs (the solved rows).
+        self.trees = trees_of(model, bodies)
+        self.tree = tree_dofs(model, self.trees)
         self._in_tree = np.searchsorted(self.tree, self.dofs)
         if not bodies:
             return
@@ -194,14 +196,14 @@ class Holders:
                 mujoco.mj_comPos(m, ds)
                 gather_positions(lay.x0, ds.qpos, lay.qpos_adr, lay.free_vertex, ds.xpos, lay.moved_vertex,
                                  lay.moved_body, xs)
-                frames = self._frames(fr)
+                frames = fr.copy()
                 evaluate(step.rods, frames, xs, lay.place, self._terms, step.ends, ds.xmat)
                 q = step.reactions.generalized(m, ds, xs, self._terms.grad, frames.t, self._terms.end_moment,
                                                self._qfrc)
                 gens.append(q[self.dofs].copy())
                 if turns and self._eps_rot[j]:
                     # the clamp frames turned, the vertices kept: F's column
-                    evaluate(step.rods, self._frames(fr), x, lay.place, self._terms, step.ends, ds.xmat)
+                    evaluate(step.rods, fr.copy(), x, lay.place, self._terms, step.ends, ds.xmat)
                     grads.append(self._terms.grad[lay.free_vertex].ravel())
             k_q[:, j] = -(gens[0] - gens[1]) / (2.0 * eps)
             if grads:
@@ -211,7 +213,8 @@ class Holders:
             jac[3 * c:3 * c + 3] = self._jacp[:, self.dofs]
         k_f = self.held_blocks(step) @ jac + frame
         if self._translation is not None:
-            k_q = invariant(k_q, k_f.T @ self._free_translation(step), self._translation)
+            # K_qf times every free vertex moved along x, y, z: k_f's rows summed by axis
+            k_q = invariant(k_q, k_f.reshape(-1, 3, k).sum(axis=0).T, self._translation)
         return k_f, k_q
 
     def held_blocks(self, step) -> np.ndarray:
@@ -219,7 +222,7 @@ class Holders:
         the held vertices (with each held-both-ends rod's rank-one twist term), from one
         compiled evaluation in which every vertex has a place in its rod's band."""
         lay, t = step.layout, self._terms_all
-        evaluate(step.rods, self._frames(step.frames), step.x, self._place_all, t, step.ends, step.xmat, np.inf,
+        evaluate(step.rods, step.frames.copy(), step.x, self._place_all, t, step.ends, step.xmat, np.inf,
                  self._bands, self._band_of_rod)
         v_off, rows = step.rods.v_off, self._bands.shape[1] // 3 + 1
         out = np.zeros((lay.n, 3 * len(self.held)))
@@ -240,17 +243,6 @@ class Holders:
                 g_f.reshape(-1, 3)[lay.place[lo:hi][free]] = t.g_tw[lo:hi][free]
                 out[:, 3 * c:3 * c + 3] += step.terms.coef[rod] * np.outer(g_f, t.g_tw[h])
         return out
-
-    def _free_translation(self, step) -> np.ndarray:
-        """(n, 3): every free rod dof moved along x, y, z."""
-        out = np.zeros((step.layout.n, 3))
-        for a in range(3):
-            out[a::3, a] = 1.0
-        return out
-
-    @staticmethod
-    def _frames(fr: Frames) -> Frames:
-        return Frames(fr.u.copy(), fr.t.copy(), fr.theta.copy(), fr.theta_end.copy())
 
     # -- the step ---------------------------------------------------------------------
     def solve(self, step) -> None:

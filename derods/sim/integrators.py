@@ -200,9 +200,8 @@ class Implicit(Step):
         super().__init__(*args, **kwargs)
         #: Held vertices whose holders have dofs, coupled implicitly (derods.sim.holders).
         self.holders = Holders(self.model, self.layout, self.rods, self.layout.band_rows, self.reactions)
-        held_trees = {int(self.model.body_treeid[b]) for b in self.holders.bodies}
         self.contact = ContactStep(self.model, self.layout.local_of_dof, self.layout.dof_off, self.layout.n,
-                                   self.layout.band_rows, held_trees)
+                                   self.layout.band_rows, self.holders.trees)
         rod_flex = [mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_FLEX, e.name) for e in self.entries]
         margin = bool(np.any(self.model.flex_margin[rod_flex] > 0))
         self.reference = ReferenceCorrection(self.model, self.data, margin)
@@ -402,7 +401,7 @@ class GeneralizedAlpha(Implicit):
         self._offset[:] = 0.0
         self._solve(lay, t, s, c)
         fr = self.frames
-        saved = (fr.u.copy(), fr.t.copy(), fr.theta.copy(), fr.theta_end.copy())
+        saved = fr.copy()
         last = math.inf
         self.solves = 1
         for k in range(self.newton_iterations + 1):
@@ -413,7 +412,7 @@ class GeneralizedAlpha(Implicit):
                 break  # close enough
             if change > NEWTON_CONTRACTION * last or k == self.newton_iterations:
                 # not converging, or not in time: this step is Euler's
-                fr.u[:], fr.t[:], fr.theta[:], fr.theta_end[:] = saved
+                fr.u[:], fr.t[:], fr.theta[:], fr.theta_end[:] = saved.u, saved.t, saved.theta, saved.theta_end
                 self._euler()
                 return
             last = change
@@ -422,7 +421,7 @@ class GeneralizedAlpha(Implicit):
                      self._band_of_rod)
             self._solve(lay, t, s, c)
             self.solves += 1
-        fr.u[:], fr.t[:], fr.theta[:], fr.theta_end[:] = saved
+        fr.u[:], fr.t[:], fr.theta[:], fr.theta_end[:] = saved.u, saved.t, saved.theta, saved.theta_end
 
     def _euler(self) -> None:
         """Make this step backward Euler's: forces at x0, the implicit mode's solve."""

@@ -39,14 +39,20 @@ def smooth_vel(model: mujoco.MjModel, data: mujoco.MjData, bias: bool) -> None:
     _MJD_SMOOTH_VEL(model._address, data._address, int(bias))
 
 
-def tree_dofs(model: mujoco.MjModel, bodies) -> np.ndarray:
-    """Every dof of the kinematic trees the given bodies belong to, sorted, int64."""
-    dofs: set[int] = set()
-    for b in bodies:
-        t = int(model.body_treeid[b])
-        if t >= 0:
-            dofs.update(range(model.tree_dofadr[t], model.tree_dofadr[t] + model.tree_dofnum[t]))
-    return np.array(sorted(dofs), dtype=np.int64)
+def trees_of(model: mujoco.MjModel, bodies) -> np.ndarray:
+    """The kinematic trees (ids, sorted, int64) the given bodies belong to (the world and
+    static bodies belong to none)."""
+    trees = model.body_treeid[np.asarray(bodies, dtype=np.int64)]
+    return np.unique(trees[trees >= 0]).astype(np.int64)
+
+
+def tree_dofs(model: mujoco.MjModel, trees: np.ndarray) -> np.ndarray:
+    """Every dof of the given trees (sorted ids), int64: sorted too, as MuJoCo numbers trees
+    and dofs in body order."""
+    if len(trees) == 0:
+        return np.zeros(0, dtype=np.int64)
+    return np.concatenate([np.arange(model.tree_dofadr[t], model.tree_dofadr[t] + model.tree_dofnum[t])
+                           for t in trees]).astype(np.int64)
 
 
 class TreeDynamics:
