@@ -1,5 +1,5 @@
 """World(mode="alpha"): generalized-alpha time stepping (derods/sim/generalized_alpha.py,
-the GeneralizedAlpha step of derods/sim/integrators.py): no numerical damping of the
+the GeneralizedAlpha step of derods/sim/alpha_step.py): no numerical damping of the
 modes a step resolves, and everything the implicit mode does still works."""
 
 from __future__ import annotations

@@ -3,9 +3,11 @@
 Add rods, compile, step, read. Behind it, one module per concern:
 :mod:`~derods.sim.layout` (the rods as MuJoCo bodies and where their numbers
 live), :mod:`~derods.sim.clamps` (pins and clamps, on the world or on moving
-bodies, and their reaction), :mod:`~derods.sim.integrators` (one step per
-mode), :mod:`~derods.sim.implicit` and :mod:`~derods.sim.contact` (the
-implicit system and contacts in its metric), :mod:`~derods.sim.divergence`
+bodies, and their reaction), :mod:`~derods.sim.holders` (bodies with dofs holding
+them, solved with the rods), :mod:`~derods.sim.integrators` and
+:mod:`~derods.sim.alpha_step` (one step per mode), :mod:`~derods.sim.implicit` and
+:mod:`~derods.sim.contact` (the implicit system and contacts in its metric, with the
+body trees that touch rods, :mod:`~derods.sim.trees`), :mod:`~derods.sim.divergence`
 (what counts as a lost solution), and :mod:`derods.step` (the rods' terms).
 
 derods writes its forces into ``qfrc_applied`` of the rod dofs and leaves
@@ -36,12 +38,14 @@ from ..rod import Rod, RodState, check_turns
 from ..step import Frames, RodSet
 from .clamps import end_bodies, twist_boundary
 from .divergence import Diagnosis
-from .integrators import MODES as _STEPS
-from .integrators import explicit_dt_limit
+from .alpha_step import GeneralizedAlpha
+from .integrators import Explicit, Implicit, Projection, explicit_dt_limit
 from .layout import END_KINDS, PROGRESS_FROM, Layout, RodEntry, add_to_spec
 
 #: Time stepping modes of a World ("auto" picks "implicit" or "explicit").
 MODES = ("auto", "implicit", "alpha", "explicit", "projection")
+#: The step of each mode but "auto" (which picks one of them).
+_STEPS = {"explicit": Explicit, "implicit": Implicit, "projection": Projection, "alpha": GeneralizedAlpha}
 #: The lightest vertex [kg] a World accepts (MuJoCo refuses bodies below its mjMINVAL, 1e-15).
 MIN_VERTEX_MASS = 1e-12
 
