@@ -135,6 +135,23 @@ def split_rows(row, col, val, local_of_dof, supported, force, n, width):
     Returns (efc: derods' rows, banded first; kb: how many are banded; col0 (kb,);
     jw (kb, width); jf (k - kb, n); ext (n,)).
     """
+    no_border = np.full(len(local_of_dof), -1, dtype=np.int64)
+    efc, kb, col0, jw, jf, _, ext, _ = split_bordered_rows(row, col, val, local_of_dof, no_border, supported, force,
+                                                           n, 0, width)
+    return efc, kb, col0, jw, jf, ext
+
+
+@nb.njit(cache=True)
+def split_bordered_rows(row, col, val, local_of_dof, border_of_dof, supported, force, n, m, width):
+    """:func:`split_rows` over n local dofs bordered by m more (border_of_dof (nv,): each
+    MuJoCo dof's place among them, -1 elsewhere; see :class:`derods._numba.contact.Border`).
+
+    A row is derods' if it touches only local and border dofs (at least one) and is
+    supported; a row that touches border dofs only is banded with an empty window.
+    Returns (efc, kb, col0 (kb,), jw (kb, width), jf (k - kb, n), jq (k, m), ext (n,),
+    ext_q (m,)): ext and ext_q MuJoCo's force of the other rows on the local and border
+    dofs.
+    """
     nefc = len(supported)
     touches = np.zeros(nefc, dtype=np.bool_)
     elsewhere = np.zeros(nefc, dtype=np.bool_)
@@ -147,15 +164,23 @@ def split_rows(row, col, val, local_of_dof, supported, force, n, width):
             touches[r] = True
             lo[r] = min(lo[r], loc)
             hi[r] = max(hi[r], loc)
+        elif border_of_dof[col[p]] >= 0:
+            touches[r] = True
         else:
             elsewhere[r] = True
     mine = touches & ~elsewhere & supported
     ext = np.zeros(n)
+    ext_q = np.zeros(m)
     for p in range(len(row)):
         r = row[p]
         loc = local_of_dof[col[p]]
         if loc >= 0 and touches[r] and not mine[r]:
             ext[loc] += val[p] * force[r]
+        elif m and loc < 0 and touches[r] and not mine[r] and border_of_dof[col[p]] >= 0:
+            ext_q[border_of_dof[col[p]]] += val[p] * force[r]
+    for r in range(nefc):
+        if hi[r] < 0:  # border dofs only: an empty window at the start
+            lo[r] = 0
     banded = mine & (hi - lo < width)
     far = mine & ~banded
     efc = np.concatenate((np.flatnonzero(banded), np.flatnonzero(far)))
@@ -165,17 +190,22 @@ def split_rows(row, col, val, local_of_dof, supported, force, n, width):
         k_of_row[efc[k]] = k
     jw = np.zeros((kb, width))
     jf = np.zeros((len(efc) - kb, n))
+    jq = np.zeros((len(efc), m))
     for p in range(len(row)):
         k = k_of_row[row[p]]
+        if k < 0:
+            continue
         loc = local_of_dof[col[p]]
-        if k < 0 or loc < 0:
+        if loc < 0:
+            if m and border_of_dof[col[p]] >= 0:
+                jq[k, border_of_dof[col[p]]] = val[p]
             continue
         if k < kb:
             jw[k, loc - lo[row[p]]] = val[p]
         else:
             jf[k - kb, loc] = val[p]
     col0 = lo[efc[:kb]].copy()
-    return efc, kb, col0, jw, jf, ext
+    return efc, kb, col0, jw, jf, jq, ext, ext_q
 
 
 @nb.njit(cache=True)

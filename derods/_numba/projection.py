@@ -106,9 +106,10 @@ def projection_step(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, tol, m
 
 
 @nb.njit(cache=True)
-def limit_strain(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, limit, tol, max_iter, xp):
+def limit_strain(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, limit, tol, max_iter, xp, held_x):
     """Strain limiting of the implicit step: predict x + h (v + h a0) for the free
-    vertices; every rod flagged in ``limited`` (n_rods,) whose predicted edge strain
+    vertices and held_x (n_vertices, 3) for the held ones (where their bodies take them;
+    x for the world's); every rod flagged in ``limited`` (n_rods,) whose predicted edge strain
     exceeds ``limit`` is projected onto its rest lengths (to ``tol``) and its free dofs'
     a0 (n,) [m/s^2] replaced by the acceleration that lands there. A rod the projection
     cannot bring there in ``max_iter`` iterations (held taut between pins: no point of
@@ -116,6 +117,10 @@ def limit_strain(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, 
     constraint. x, xp (n_vertices, 3): positions now and (scratch) predicted. Returns
     (rods projected, rods left as they were)."""
     predict_into(x, place, v, a0, h, xp)
+    for vtx in range(x.shape[0]):
+        if place[vtx] < 0:
+            for a in range(3):
+                xp[vtx, a] = held_x[vtx, a]
     n_projected, n_left = 0, 0
     for i in range(len(v_off) - 1):
         if not limited[i]:

@@ -83,7 +83,7 @@ class GeneralizedAlpha(Implicit):
         self._shift[:] = 0.0
         n, _ = limit_strain(x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, inv_mass, self.layout.place,
                             self._zero, self._shift, 1.0, self.limited, self.strain_limit, PROJECTION_TOL,
-                            PROJECTION_MAX_ITER, self._xp)
+                            PROJECTION_MAX_ITER, self._xp, x)
         if n:
             lay = self.layout
             qpos = (lay.qpos_adr[:, None] + np.arange(3)).ravel()
@@ -92,7 +92,8 @@ class GeneralizedAlpha(Implicit):
         self.n_projected = n
         return n
 
-    def _limit_strain(self, a: np.ndarray, inv_mass: np.ndarray | None = None) -> int:
+    def _limit_strain(self, a: np.ndarray, inv_mass: np.ndarray | None = None,
+                      held_x: np.ndarray | None = None) -> int:
         return 0  # done on positions, at the start of the next step
 
     def _unconstrained(self, lay, t, s) -> None:

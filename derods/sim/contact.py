@@ -166,10 +166,12 @@ def solve(system: ImplicitSystem, a0: np.ndarray, rows: Rows, max_iter: int = MA
     The objective is convex and piecewise quadratic; each Newton step is
     followed by an exact line search along its direction.
     """
-    return _k.newton(system.k_band, system.a_band, system.g, system.tw_lo, system.tw_hi, system.tw_c, system.s,
-                     system.mass, system.m_coef, np.ascontiguousarray(a0, dtype=float), rows.col0, rows.jw,
-                     *rows.far_csr(system.n), np.ascontiguousarray(rows.aref, dtype=float),
-                     np.ascontiguousarray(rows.d, dtype=float), max_iter, tol)
+    a, _, lam, it = _k.newton(system.k_band, system.a_band, system.g, system.tw_lo, system.tw_hi, system.tw_c,
+                              system.s, system.mass, system.m_coef, np.ascontiguousarray(a0, dtype=float), rows.col0,
+                              rows.jw, *rows.far_csr(system.n), np.ascontiguousarray(rows.aref, dtype=float),
+                              np.ascontiguousarray(rows.d, dtype=float), _k.no_border(system.n, len(rows)), max_iter,
+                              tol)
+    return a, lam, it
 
 
 class ContactStep:

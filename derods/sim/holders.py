@@ -12,9 +12,9 @@ Euler, linearized about the start of the step, s = h^2 + h b):
     (M - h D) a_q + s (K_qf a_f + K_qq a_q) = f_q - (b + h) (K_qf v_f + K_qq v_q)
 
 with E the rods' energy, K_fq = d grad_f E / dq and K_qq = d^2 E / dq^2 (so K_qf =
-K_fq^T), f_q everything MuJoCo puts on the holders' dofs this step (the rods' reaction
-at the start of the step, their own constraints from MuJoCo's solve, actuators,
-damping), M MuJoCo's mass matrix and D its velocity derivative (``qDeriv``: joint
+K_fq^T), f_q everything MuJoCo puts on the holders' dofs this step but the contact rows derods
+solves (the rods' reaction at the start of the step, actuators, damping, MuJoCo's
+force of the constraints it keeps), M MuJoCo's mass matrix and D its velocity derivative (``qDeriv``: joint
 damping, actuators' kv, as MuJoCo's implicit integrators take it, or the joint damping
 Euler's takes implicitly). Eliminating a_f with the rods' factored A (one banded solve
 per holder dof) leaves a small dense system, the rods' stiffness as the holders feel
@@ -119,7 +119,8 @@ def invariant(k_qq: np.ndarray, k_qf_sum: np.ndarray, mode: np.ndarray) -> np.nd
 
 
 class Holders:
-    """The bodies with dofs that hold rod ends, and the coupled solve. Built once from
+    """The bodies with dofs that hold rod ends, and the matrices of the coupled step (solved
+    with the contacts by :mod:`derods.sim.coupled`). Built once from
     the layout; ``bool(holders)`` is False (and costs nothing) when there are none.
 
     dofs (k,): the dofs that move a held vertex or clamp (the FD columns); tree (m,):
@@ -164,10 +165,15 @@ class Holders:
     def __bool__(self) -> bool:
         return len(self.dofs) > 0
 
+    def rods_held(self) -> np.ndarray:
+        """The rods (indices) with a vertex held by one of these bodies."""
+        return np.unique(self._rod_of_held) if self else np.zeros(0, dtype=np.int64)
+
     # -- the matrices -----------------------------------------------------------------
-    def stiffness_columns(self, step) -> tuple[np.ndarray, np.ndarray]:
+    def stiffness_columns(self, step) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """K's columns over the holder dofs at the step's state: k_f (n, k) = d grad_f / dq
-        [N/m or N/rad] over the rods' free dofs, k_q (k, k) = d^2 E / dq^2.
+        [N/m or N/rad] over the rods' free dofs, k_q (k, k) = d^2 E / dq^2, and the held
+        points' Jacobian (3H, k) [m per unit of dof] (their motion per holder dof).
 
         k_f = K_fh J + F: K_fh the Gauss-Newton blocks between free and held vertices (the
         compiled step's, the same the band holds, so that a rigid translation of rod and
@@ -215,7 +221,7 @@ class Holders:
         if self._translation is not None:
             # K_qf times every free vertex moved along x, y, z: k_f's rows summed by axis
             k_q = invariant(k_q, k_f.reshape(-1, 3, k).sum(axis=0).T, self._translation)
-        return k_f, k_q
+        return k_f, k_q, jac
 
     def held_blocks(self, step) -> np.ndarray:
         """K_fh (n, 3H) [N/m]: the Gauss-Newton Hessian blocks between the rods' free dofs and
@@ -243,25 +249,3 @@ class Holders:
                 g_f.reshape(-1, 3)[lay.place[lo:hi][free]] = t.g_tw[lo:hi][free]
                 out[:, 3 * c:3 * c + 3] += step.terms.coef[rod] * np.outer(g_f, t.g_tw[h])
         return out
-
-    # -- the step ---------------------------------------------------------------------
-    def solve(self, step) -> None:
-        """Couple the step's rods to their holders: replace step.a0 (the rods'
-        unconstrained acceleration), and set the holders' trees' qacc and the force that
-        makes MuJoCo's integrator reproduce it (call after MuJoCo's forward pass)."""
-        m, d = step.model, step.data
-        h, b = step.h, step.stiffness_damping
-        s = h * h + h * b
-        k_f, k_q = self.stiffness_columns(step)
-        v_q = d.qvel[self.dofs]
-        y = step.system.solve(s * k_f)  # A^-1 s K_fq, (n, k)
-        y0 = step.a0 - (b + h) / s * (y @ v_q)
-        metric = self._dynamics.metric(m, d, self.tree)
-        lhs = metric.copy()
-        c = self._in_tree
-        lhs[np.ix_(c, c)] += s * k_q - s * (k_f.T @ y)
-        force = d.qfrc_smooth[self.tree] + d.qfrc_constraint[self.tree]
-        force[c] -= (b + h) * (k_f.T @ step.v + k_q @ v_q) + s * (k_f.T @ y0)
-        a_t = np.linalg.solve(lhs, force)
-        step.a0[:] = y0 - y @ a_t[c]
-        self._dynamics.write(d, self.tree, metric, a_t)

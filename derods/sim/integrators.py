@@ -32,6 +32,7 @@ from .._numba.projection import limit_strain, projection_step
 from ..step import EndBodies, Frames, RodSet, Terms, evaluate
 from .clamps import Reactions
 from .contact import ContactStep, ReferenceCorrection
+from .coupled import CoupledStep
 from .divergence import MAX_SPEED, MAX_STRAIN, Diagnosis
 from .holders import Holders
 from .implicit import ImplicitSystem
@@ -188,6 +189,7 @@ class Implicit(Step):
         self.holders = Holders(self.model, self.layout, self.rods, self.layout.band_rows, self.reactions)
         self.contact = ContactStep(self.model, self.layout.local_of_dof, self.layout.dof_off, self.layout.n,
                                    self.layout.band_rows, self.holders.trees)
+        self.coupled = CoupledStep(self.model, self.layout, self.holders, self.contact) if self.holders else None
         rod_flex = [mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_FLEX, e.name) for e in self.entries]
         margin = bool(np.any(self.model.flex_margin[rod_flex] > 0))
         self.reference = ReferenceCorrection(self.model, self.data, margin)
@@ -211,7 +213,8 @@ class Implicit(Step):
         m, d, lay = self.model, self.data, self.layout
         self.elastic()
         self.unconstrained()
-        self.n_projected = self._limit_strain(self.a0)
+        if not self.holders:
+            self.n_projected = self._limit_strain(self.a0)
         # With this force MuJoCo's unconstrained acceleration of the rod dofs is a0, so its
         # own constraint solve (for bodies the rods touch) sees the implicit motion.
         _io.write_applied(lay.dofs, lay.mass, self.a0, self.other, self.qfrc_applied)
@@ -223,12 +226,15 @@ class Implicit(Step):
         if self.reference:
             self.reference.correct(d)
         if self.holders:
-            self.holders.solve(self)  # the rods' a0 and the holders' qacc, solved together
-        a = self._contact(d)
-        if a is not None:
-            # Contact impulses turn edges too: limit the strain they leave, moving only
-            # the vertices no contact pushes on.
-            self.n_projected += self._limit_strain(a, self._touching())
+            # Rods, holders, touching bodies and their contacts in one solve, and the strain
+            # limit with the held vertices where their bodies take them (derods.sim.coupled).
+            a = self._coupled()
+        else:
+            a = self._contact(d)
+            if a is not None:
+                # Contact impulses turn edges too: limit the strain they leave, moving only
+                # the vertices no contact pushes on.
+                self.n_projected += self._limit_strain(a, self._touching())
         if a is not None or self.holders:
             _io.write_acceleration(lay.dofs, lay.mass, self.a0 if a is None else a, self.qacc, self.qfrc_smooth,
                                    self.qfrc_constraint, self.resolves)
@@ -240,6 +246,11 @@ class Implicit(Step):
         self._integrated(self.a0 if a is None else a)
         self.n_steps += 1
         self.check()
+
+    def _coupled(self) -> np.ndarray:
+        """The step's acceleration of the rod dofs from the coupled solve of rods, holders,
+        touching bodies and their contacts (:mod:`derods.sim.coupled`)."""
+        return self.coupled(self)
 
     def _contact(self, d: mujoco.MjData) -> np.ndarray | None:
         """The step's acceleration with contacts re-solved in its metric (None: no
@@ -259,18 +270,20 @@ class Implicit(Step):
         inv_mass[self.layout.free_vertex[pushed]] *= TOUCHING_WEIGHT
         return inv_mass
 
-    def _limit_strain(self, a: np.ndarray, inv_mass: np.ndarray | None = None) -> int:
+    def _limit_strain(self, a: np.ndarray, inv_mass: np.ndarray | None = None,
+                      held_x: np.ndarray | None = None) -> int:
         """Project the rods that ``a`` (local accelerations, changed in place) would strain
         beyond the strain limit back onto their rest lengths, moving vertices by
-        ``inv_mass`` (n_vertices,) (default: their own); returns how many were (a rod that
-        cannot be, held taut between pins, keeps its step)."""
+        ``inv_mass`` (n_vertices,) (default: their own), the held ones predicted at
+        ``held_x`` (n_vertices, 3) [m] (default: where they are); returns how many were (a
+        rod that cannot be, held taut between pins, keeps its step)."""
         if not self.limited.any() or math.isinf(self.strain_limit):
             return 0
         inv_mass = self.inv_mass if inv_mass is None else inv_mass
         try:
             n, _ = limit_strain(self.x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, inv_mass,
                                 self.layout.place, self.v, a, self.h, self.limited, self.strain_limit,
-                                PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp)
+                                PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp, self.x if held_x is None else held_x)
         except ValueError as err:  # the projection's banded Cholesky, in a state gone wild
             self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)
         return n

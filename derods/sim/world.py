@@ -68,7 +68,9 @@ class ContactParams:
     of the step; a rod faster than margin / dt still can. 0 (default): contacts are
     found once the rod is inside, up to a step's travel deep. Against bodies that
     move by their own dofs MuJoCo solves the rows, and reads a margin as a skin
-    the rod rests on.
+    the rod rests on. holder_contact: a held edge collides with the body (with dofs)
+    that holds it; off by default, as MuJoCo never collides a body with its parent
+    or children.
     """
 
     friction: float = 1.0
@@ -78,6 +80,7 @@ class ContactParams:
     self_collision: bool = False
     rod_rod: bool = True
     margin: float = 0.0
+    holder_contact: bool = False
 
 
 class World:
@@ -267,6 +270,8 @@ class World:
                                        self.stiffness_damping, diagnosis)
         if self.strain_limit is not None:
             self._step.strain_limit = self.strain_limit
+        if getattr(self._step, "coupled", None) is not None:
+            self._step.coupled.holder_contact = self.contact.holder_contact
         self._model, self._data, self._layout = model, data, layout
         #: Where compile's time went [s]: adding the rods to the spec, MuJoCo's compile
         #: (its body-dof sparsity sorts a row of all nv dofs by insertion: nv^2 / 2 moves,

@@ -1,0 +1,274 @@
+"""One solve per step of the rods, the bodies that hold them, the bodies that touch
+them, and every contact row among them.
+
+Where rods are held by bodies with dofs (:mod:`derods.sim.holders`), solving the rods,
+the holders and the contacts in turn, each with the others frozen, is right for each
+part alone and wrong together: a rope hanging over a cylinder from two weights was
+pulled through it (the contact force never reached the weights), a light box holding a
+rod bounced off the floor (its contact force was MuJoCo's, computed for the bare box),
+and the strain limit, run before the holders moved, projected the rod around where its
+holder had been. Here all of it is one problem, MuJoCo's primal contact problem in the
+metric of the coupled implicit step:
+
+    minimize  1/2 (a - a*)^T H (a - a*) + sum_i 1/2 D_i min(J_i a - aref_i, 0)^2
+
+over a = (a_f, a_q): a_f the rods' free dofs and the dofs of small trees their rows
+touch (:class:`derods.sim.contact.ContactStep`), a_q every dof of the holders' trees.
+H is the coupled step's matrix of :mod:`derods.sim.holders`,
+
+    H = [[A, s K_fq], [s K_qf, M - h D + s K_qq]],
+
+A banded over a_f and the holders a dense border of m dofs; a* its unconstrained
+solution; the rows every supported row that touches only these dofs (a held edge on the
+floor, the holder's own contacts, the rope on the cylinder). Newton's method on it
+(:func:`derods._numba.contact.newton` with a :class:`derods._numba.contact.Border`)
+solves with the band's Cholesky factor and the border's Schur complement; row weights
+keep MuJoCo's impedance in this metric (D = 1 / (R / diagA * diag(J H^-1 J^T))). The
+holders' trees get the acceleration found, written as the force that makes MuJoCo's
+integrator reproduce it (:mod:`derods.sim.trees`), and so do the touching trees.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from .._numba import contact as _k
+from .._numba.banded import cholesky_into
+from .._numba.contact_rows import efc_triplets, split_bordered_rows
+from .._numba.implicit import sm_solve_into
+from .contact import MAX_ITER, SUPPORTED, TOL, WINDOW, ContactStep
+from .holders import Holders
+from .trees import tree_dofs
+
+
+class CoupledStep:
+    """The coupled solve of a world whose rods are held by bodies with dofs.
+
+    holders: the world's :class:`Holders` (non-empty); contact: its
+    :class:`ContactStep` (for the trees that touch rods, and ``force``). After a call,
+    ``contact.force`` (n,) [N] holds the constraint force on the rod dofs and
+    ``held_x`` (n_vertices, 3) [m] where the held vertices will be at the end of the step.
+    """
+
+    def __init__(self, model: mujoco.MjModel, layout, holders: Holders, contact: ContactStep):
+        self.model, self.layout = model, layout
+        self.holders, self.contact = holders, contact
+        self.m = len(holders.tree)
+        self.border_of_dof = np.full(model.nv, -1, dtype=np.int64)
+        self.border_of_dof[holders.tree] = np.arange(self.m)
+        self.is_sparse = bool(mujoco.mj_isSparse(model))
+        self.held_x = layout.x0.copy()
+        #: Whether a held edge collides with the body holding it (ContactParams.holder_contact);
+        #: off, as MuJoCo does not collide a body with its parent or children.
+        self.holder_contact = False
+        self._elem_holder = _element_holders(model, layout, holders.bodies)
+        self._contact_types = np.array([int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS),
+                                        int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL),
+                                        int(mujoco.mjtConstraint.mjCNSTR_CONTACT_ELLIPTIC)])
+
+    def __call__(self, step) -> np.ndarray:
+        """The rods' acceleration [m/s^2] (n,) of this step; the holders' and touching
+        trees' qacc and constraint forces are written into MuJoCo's data."""
+        m, d, hl, sysm, lay = step.model, step.data, self.holders, step.system, step.layout
+        h, b = step.h, step.stiffness_damping
+        s = h * h + h * b
+        n, mq, c = lay.n, self.m, hl._in_tree
+        k_f, k_q, jac = hl.stiffness_columns(step)
+        metric = hl._dynamics.metric(m, d, hl.tree)
+        h_qq = metric.copy()
+        h_qq[np.ix_(c, c)] += s * k_q
+        # The rods' system, extended by the trees the rows bind to rods this step.
+        trees = self.contact._touching_trees(d) if (self.contact.bodies and d.nefc) else np.zeros(0, np.int64)
+        ext_sys = _Extended(m, d, sysm, self.contact, trees, step.a0)
+        nn = ext_sys.n
+        if d.nefc:
+            row, col, val = efc_triplets(self.is_sparse, d.nefc, m.nv, d.efc_J, d.efc_J_rownnz, d.efc_J_rowadr,
+                                         d.efc_J_colind)
+            supported = np.isin(d.efc_type[:d.nefc], SUPPORTED)
+            efc_force = d.efc_force[:d.nefc]
+            own = self._own_holder_rows(d)
+            if own is not None:  # neither solved nor MuJoCo's: no force at all
+                supported &= ~own
+                efc_force = np.where(own, 0.0, efc_force)
+            efc, kb, col0, jw, jf, jq, ext, ext_q = split_bordered_rows(
+                row, col, val, ext_sys.local_of_dof, self.border_of_dof, supported, efc_force, nn, mq, WINDOW)
+        else:
+            efc, ext, ext_q = np.zeros(0, np.int64), np.zeros(nn), np.zeros(mq)
+        start = ext_sys.a0.copy()
+        if np.any(ext):
+            e = ext.copy()
+            sm_solve_into(ext_sys.lt, ext_sys.g, sysm.tw_lo, sysm.tw_hi, sysm.tw_c, s, ext_sys.z, sysm.den, e)
+            start += e
+        # The coupled unconstrained solution a* (holders.py's Schur complement on A).
+        v_q = d.qvel[hl.dofs]
+        y = sysm.solve(s * k_f)  # A^-1 s K_fq, (n, k)
+        y0 = start[:n] - (b + h) / s * (y @ v_q)
+        schur = h_qq.copy()
+        schur[np.ix_(c, c)] -= s * (k_f.T @ y)
+        fix = definite(schur, metric)
+        if fix is not None:
+            schur += fix
+            h_qq += fix
+        force = d.qfrc_smooth[hl.tree] + ext_q
+        force[c] -= (b + h) * (k_f.T @ step.v + k_q @ v_q) + s * (k_f.T @ y0)
+        aq = np.linalg.solve(schur, force)
+        a = start
+        a[:n] = y0 - y @ aq[c]
+        self.contact.force[:] = 0.0
+        if len(efc):
+            fptr, fcol, fval = _k.far_rows_csr(jf)
+            h_fq = np.zeros((nn, mq))
+            h_fq[:n, c] = s * k_f
+            big_y = np.zeros((nn, mq))
+            big_y[:n, c] = y
+            diag = _k.delassus_diagonal(ext_sys.lt, ext_sys.g, sysm.tw_lo, sysm.tw_hi, sysm.tw_c, s, ext_sys.z,
+                                        sysm.den, col0, jw, fptr, fcol, fval)
+            # the border's part of diag(J H^-1 J^T): u S^-1 u^T, u = J_q - J_f A^-1 H_fq
+            u = jq - np.column_stack([_k.apply_all(col0, jw, fptr, fcol, fval, np.ascontiguousarray(big_y[:, j]))
+                                      for j in range(mq)]) if mq else jq
+            diag += np.einsum("ij,ij->i", u, np.linalg.solve(schur, u.T).T)
+            weights = 1.0 / (d.efc_R[efc] / d.efc_diagA[efc] * diag)
+            border = _k.Border(h_fq, np.ascontiguousarray(h_qq), np.ascontiguousarray(jq), aq)
+            a, aq, lam, _ = _k.newton(ext_sys.k_band, ext_sys.a_band, ext_sys.g, sysm.tw_lo, sysm.tw_hi, sysm.tw_c,
+                                      s, ext_sys.mass, sysm.m_coef, a, col0, jw, fptr, fcol, fval,
+                                      np.ascontiguousarray(d.efc_aref[efc]), weights, border, MAX_ITER, TOL)
+            f = ext + _k.transpose_apply_all(col0, jw, fptr, fcol, fval, lam, nn)
+            self.contact.force[:] = f[:n]
+        elif np.any(ext):
+            self.contact.force[:] = ext[:n]
+        af = a[:n]
+        aq = aq + self._limit_strain(step, af, aq, jac, metric)
+        hl._dynamics.write(d, hl.tree, metric, aq)
+        ext_sys.write(d, a[n:])
+        return af
+
+    def _limit_strain(self, step, af: np.ndarray, aq: np.ndarray, jac: np.ndarray, metric: np.ndarray) -> np.ndarray:
+        """The strain limit (:data:`derods.sim.integrators.STRAIN_LIMIT`) on the coupled
+        solution: the held vertices predicted where their bodies take them (first order)
+        and moved by the projection as their holders' inverse inertia at that point says
+        (J (M - h D)^-1 J^T, its mean over axes), the projection's impulse on them passed
+        to the holders. Changes af (n,) in place; returns the holders' change of
+        acceleration (m,) [m/s^2 or rad/s^2]."""
+        hl, h, c = self.holders, step.h, self.holders._in_tree
+        self.held_x[:] = step.x
+        v_q = step.data.qvel[hl.dofs]
+        if not len(hl.held):
+            step.n_projected = step._limit_strain(af, step._touching(), self.held_x)
+            return np.zeros(self.m)
+        self.held_x[hl.held] += h * (jac @ (v_q + h * aq[c])).reshape(-1, 3)
+        inv_metric = np.linalg.inv(metric)[np.ix_(c, c)]
+        per_point = np.einsum("pi,ij,pj->p", jac, inv_metric, jac).reshape(-1, 3).mean(axis=1)
+        inv_mass = step._touching()
+        inv_mass[hl.held] = per_point
+        step.n_projected = step._limit_strain(af, inv_mass, self.held_x)
+        if not step.n_projected:
+            return np.zeros(self.m)
+        move = step._xp[hl.held] - self.held_x[hl.held]  # the projection's move of the held points
+        impulse = (move / per_point[:, None]).ravel() / (h * h)  # [N] over the step
+        change = np.zeros(self.m)
+        change[c] = inv_metric @ (jac.T @ impulse)
+        return change
+
+
+    def _own_holder_rows(self, d: mujoco.MjData) -> np.ndarray | None:
+        """Which constraint rows (nefc,) are contacts of a held edge with its own holder's
+        geoms (None: none, or holder_contact is on)."""
+        if self.holder_contact or d.ncon == 0 or self._elem_holder is None:
+            return None
+        m, con = self.model, d.contact
+        own = np.zeros(d.ncon, dtype=bool)
+        for side in (0, 1):
+            g, f, e = con.geom[:, side], con.flex[:, 1 - side], con.elem[:, 1 - side]
+            ok = (g >= 0) & (f >= 0)
+            if not ok.any():
+                continue
+            body = m.geom_bodyid[np.where(ok, g, 0)]
+            holder = self._elem_holder[np.where(ok, m.flex_elemadr[np.where(ok, f, 0)] + e, 0)]
+            own |= ok & ((holder[:, 0] == body) | (holder[:, 1] == body))
+        if not own.any():
+            return None
+        rows = np.isin(d.efc_type[:d.nefc], self._contact_types)
+        rows[rows] = own[d.efc_id[:d.nefc][rows]]
+        return rows
+
+
+def definite(schur: np.ndarray, metric: np.ndarray) -> np.ndarray | None:
+    """The smallest symmetric correction that makes the holders' Schur complement S
+    (m, m) at least their metric M - h D (m, m) in every direction, or None if it is.
+
+    The rods' band is the Gauss-Newton part of their Hessian (positive semidefinite), but
+    K_qq comes from differencing the rods' reaction: exact, with the geometric stiffness
+    of the force they carry (a rod pushing on a box's edge turns it). Where that is
+    negative and the holder light, the coupled matrix is indefinite (measured: a 10 g box
+    holding a rod that lands on the floor at dt 1e-2, S's smallest eigenvalue relative to
+    M went 1, 0.42, -0.61 and the step diverged). The Gauss-Newton model has S >= M (the
+    rods' stiffness as the holders feel it, a Schur complement of a PSD matrix, adds to
+    their inertia), so the generalized eigenvalues of (S, M) below 1 are raised to 1."""
+    chol = np.linalg.cholesky(metric)
+    t = np.linalg.solve(chol, np.linalg.solve(chol, 0.5 * (schur + schur.T)).T)
+    lam, vec = np.linalg.eigh(0.5 * (t + t.T))
+    if lam.min() >= 1.0:
+        return None
+    lift = chol @ vec
+    return (lift * (np.maximum(lam, 1.0) - lam)) @ lift.T
+
+
+def _element_holders(model: mujoco.MjModel, layout, bodies: np.ndarray) -> np.ndarray | None:
+    """For every flex element of the model, the ``bodies`` (holders with dofs; up to 2, -1
+    for none) that hold one of its vertices, riding it as their child, shape
+    (nflexelem, 2); None if no vertex is."""
+    riding = np.isin(model.body_parentid[layout.moved_body], bodies)
+    if not riding.any():
+        return None
+    out = np.full((max(int(model.nflexelem), 1), 2), -1, dtype=np.int64)
+    parent_of = dict(zip(layout.moved_body[riding].tolist(), model.body_parentid[layout.moved_body[riding]].tolist()))
+    for f in range(model.nflex):
+        if model.flex_dim[f] != 1:
+            continue
+        adr, num = int(model.flex_elemdataadr[f]), int(model.flex_elemnum[f])
+        bodies = model.flex_vertbodyid[model.flex_vertadr[f] + model.flex_elem[adr:adr + 2 * num]].reshape(num, 2)
+        for e in range(num):
+            for side in (0, 1):
+                out[model.flex_elemadr[f] + e, side] = parent_of.get(int(bodies[e, side]), -1)
+    return out
+
+
+class _Extended:
+    """The rods' factored system with the dofs of the trees in ``trees`` appended as band
+    blocks of their M - h D (scaled into the band's s K so that s K + m_coef M is it),
+    as :class:`ContactStep` does; local_of_dof (nv,) maps MuJoCo dofs to the n + k of them."""
+
+    def __init__(self, m, d, system, contact: ContactStep, trees, a0):
+        self.contact = contact
+        n, s = system.n, system.s
+        if not len(trees):
+            self.n, self.local_of_dof = n, contact.local_of_dof
+            self.k_band, self.a_band, self.lt = system.k_band, system.a_band, system.lt
+            self.g, self.z, self.mass, self.a0 = system.g, system.z, system.mass, a0.copy()
+            self.dofs = np.zeros(0, np.int64)
+            return
+        dofs = tree_dofs(m, trees)
+        k = len(dofs)
+        metric = contact._dynamics.metric(m, d, dofs)
+        rows = system.a_band.shape[0]
+        band = np.zeros((rows, k))
+        for dd in range(min(rows, k)):
+            band[dd, :k - dd] = np.diagonal(metric, -dd)
+        lt = np.zeros((k, rows))
+        cholesky_into(band, lt)
+        local = contact.local_of_dof.copy()
+        local[dofs] = n + np.arange(k)
+        zeros = np.zeros(k)
+        self.n, self.local_of_dof, self.dofs, self.metric = n + k, local, dofs, metric
+        self.k_band = np.hstack([system.k_band, band / s])
+        self.a_band = np.hstack([system.a_band, band])
+        self.lt = np.vstack([system.lt, lt])
+        self.g, self.z = np.concatenate([system.g, zeros]), np.concatenate([system.z, zeros])
+        self.mass = np.concatenate([system.mass, zeros])
+        self.a0 = np.concatenate([a0, np.linalg.solve(metric, d.qfrc_smooth[dofs])])
+
+    def write(self, d, qacc) -> None:
+        """The appended trees' acceleration, for MuJoCo's integrator to reproduce."""
+        if len(self.dofs):
+            self.contact._dynamics.write(d, self.dofs, self.metric, qacc)
