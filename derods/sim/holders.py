@@ -170,10 +170,9 @@ class Holders:
         return np.unique(self._rod_of_held) if self else np.zeros(0, dtype=np.int64)
 
     # -- the matrices -----------------------------------------------------------------
-    def stiffness_columns(self, step) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def stiffness_columns(self, step) -> tuple[np.ndarray, np.ndarray]:
         """K's columns over the holder dofs at the step's state: k_f (n, k) = d grad_f / dq
-        [N/m or N/rad] over the rods' free dofs, k_q (k, k) = d^2 E / dq^2, and the held
-        points' Jacobian (3H, k) [m per unit of dof] (their motion per holder dof).
+        [N/m or N/rad] over the rods' free dofs, k_q (k, k) = d^2 E / dq^2.
 
         k_f = K_fh J + F: K_fh the Gauss-Newton blocks between free and held vertices (the
         compiled step's, the same the band holds, so that a rigid translation of rod and
@@ -221,7 +220,7 @@ class Holders:
         if self._translation is not None:
             # K_qf times every free vertex moved along x, y, z: k_f's rows summed by axis
             k_q = invariant(k_q, k_f.reshape(-1, 3, k).sum(axis=0).T, self._translation)
-        return k_f, k_q, jac
+        return k_f, k_q
 
     def held_blocks(self, step) -> np.ndarray:
         """K_fh (n, 3H) [N/m]: the Gauss-Newton Hessian blocks between the rods' free dofs and
