@@ -16,7 +16,8 @@ from .._numba.projection import limit_strain, predict_into
 from ..step import evaluate
 from . import generalized_alpha as ga
 from .divergence import MAX_STRAIN
-from .integrators import PROJECTION_MAX_ITER, PROJECTION_TOL, Implicit
+from .integrators import Implicit
+from .projection import PROJECTION_MAX_ITER, PROJECTION_TOL
 
 #: The alpha mode's Newton iterations per step, at most, and their tolerance [relative to
 #: the shortest edge] on the change of the evaluation point x_{1-af}. Linearized once

@@ -132,7 +132,10 @@ class CoupledStep:
             u = jq - np.column_stack([_k.apply_all(col0, jw, fptr, fcol, fval, np.ascontiguousarray(big_y[:, j]))
                                       for j in range(mq)]) if mq else jq
             diag += np.einsum("ij,ij->i", u, np.linalg.solve(schur, u.T).T)
-            weights = 1.0 / (d.efc_R[efc] / d.efc_diagA[efc] * diag)
+            # a row that nothing here can move (J H^-1 J^T = 0: a held edge touching its own
+            # holder, both parts on one rigid body) takes no force
+            scaled = d.efc_R[efc] / d.efc_diagA[efc] * diag
+            weights = np.divide(1.0, scaled, out=np.zeros_like(scaled), where=scaled > 0)
             border = _k.Border(h_fq, np.ascontiguousarray(h_qq), np.ascontiguousarray(jq), aq)
             a, aq, lam, _ = _k.newton(ext_sys.k_band, ext_sys.a_band, ext_sys.g, sysm.tw_lo, sysm.tw_hi, sysm.tw_c,
                                       s, ext_sys.mass, sysm.m_coef, a, col0, jw, fptr, fcol, fval,

@@ -36,11 +36,9 @@ from .coupled import CoupledStep
 from .divergence import MAX_SPEED, MAX_STRAIN, Diagnosis
 from .holders import Holders
 from .implicit import ImplicitSystem
+from .projection import PROJECTION_MAX_ITER, PROJECTION_TOL
 from .layout import Layout, RodEntry
 
-#: Tolerance [relative edge strain] and iteration cap of the projection mode.
-PROJECTION_TOL = 1e-10
-PROJECTION_MAX_ITER = 50
 #: The implicit step's default strain limit [relative edge strain] (World's
 #: ``strain_limit``). Its stiff stretching term is linearized, so an edge that turns by
 #: phi in one step comes out stretched by ~phi^2 / 2 (a strand swung by a moving head:
@@ -271,18 +269,20 @@ class Implicit(Step):
         return inv_mass
 
     def _limit_strain(self, a: np.ndarray, inv_mass: np.ndarray | None = None,
-                      held_x: np.ndarray | None = None) -> int:
+                      held_x: np.ndarray | None = None, limited: np.ndarray | None = None) -> int:
         """Project the rods that ``a`` (local accelerations, changed in place) would strain
         beyond the strain limit back onto their rest lengths, moving vertices by
         ``inv_mass`` (n_vertices,) (default: their own), the held ones predicted at
-        ``held_x`` (n_vertices, 3) [m] (default: where they are); returns how many were (a
-        rod that cannot be, held taut between pins, keeps its step)."""
-        if not self.limited.any() or math.isinf(self.strain_limit):
+        ``held_x`` (n_vertices, 3) [m] (default: where they are), among the rods
+        ``limited`` (n_rods,) (default: every open rod of the default stretch stiffness);
+        returns how many were (a rod that cannot be, held taut between pins, keeps its step)."""
+        limited = self.limited if limited is None else limited
+        if not limited.any() or math.isinf(self.strain_limit):
             return 0
         inv_mass = self.inv_mass if inv_mass is None else inv_mass
         try:
             n, _ = limit_strain(self.x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, inv_mass,
-                                self.layout.place, self.v, a, self.h, self.limited, self.strain_limit,
+                                self.layout.place, self.v, a, self.h, limited, self.strain_limit,
                                 PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp, self.x if held_x is None else held_x)
         except ValueError as err:  # the projection's banded Cholesky, in a state gone wild
             self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)

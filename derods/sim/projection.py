@@ -19,6 +19,11 @@ import numpy as np
 
 from .._numba.projection import project_rod
 
+#: Tolerance [relative edge strain] and iteration cap of every projection of a step (the
+#: projection mode's, the strain limit's).
+PROJECTION_TOL = 1e-10
+PROJECTION_MAX_ITER = 50
+
 
 def project(x: np.ndarray, inv_mass: np.ndarray, rest_len: np.ndarray, tol: float = 1e-10,
             max_iter: int = 50) -> tuple[np.ndarray, int]:

@@ -1,0 +1,231 @@
+"""Rods held by bodies under gravity and in contact (issue 27): closed forms and the quick
+sweep of derods/bench/held.py. Each test states its tolerance and where it comes from."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from derods import ContactParams, DivergenceError, Material, Rod, World, shapes
+from derods.bench import held
+
+#: The cable of the drag and reaction tests: r = 3 mm, rho = 1000 kg/m^3 (0.0283 kg/m).
+RADIUS = 3e-3
+
+
+@pytest.mark.parametrize("dt", [1e-3, 1e-2])
+@pytest.mark.parametrize("end", ["pin", "clamp"])
+@pytest.mark.parametrize("mass", [0.01, 1.0])
+def test_a_rod_falls_with_the_free_body_holding_it(mass, end, dt):
+    """A 4 cm free box holding a 0.4 m rod (E = 1e7, 32 edges) at its face, gravity on,
+    nothing to touch, 0.3 s: every vertex moves as the box does, to 1e-4 of the rod's
+    length (40 um; the issue's bound). In a uniform field the pair falls rigidly, and the
+    rod's vertices and the box go through the same MuJoCo integrator, so the exact answer
+    is zero relative motion (measured 2e-13 m with the strain limit off)."""
+    r = held.run(held.Case("fall", "free", mass=mass, end=end, dt=dt, duration=0.3))
+    assert r["stable"], r["note"]
+    assert r["values"]["relative_motion"] < 1e-4 * held.LENGTH["fall"], r["note"]
+
+
+def _dragged_cable(dt: float, mu_floor: float, mu_rod: float, speed: float):
+    """A 0.5 m cable (32 edges, E = 1e7) lying on a floor along -x, its start pinned 1 mm
+    above the floor (so the held vertex touches nothing) to a 1 kg cart on an undamped,
+    frictionless slide along x, driven by a stiff position servo (kp 1e4 N/m, kv 200 N s/m)
+    whose target moves at ``speed`` [m/s] from t = 0. Returns (world, rod)."""
+    z = RADIUS + 1e-3
+    xml = f"""<mujoco><worldbody>
+      <geom name="floor" type="plane" size="3 3 0.1" friction="{mu_floor} 0.005 0.0001" condim="3"/>
+      <body name="cart" pos="0 0 {z}"><joint name="x" type="slide" axis="1 0 0"/>
+        <geom type="box" size="0.01 0.01 0.01" mass="1" contype="0" conaffinity="0"/></body>
+    </worldbody><actuator><position name="servo" joint="x" kp="1e4" kv="200" ctrlrange="-5 5"/></actuator></mujoco>"""
+    world = World(mujoco.MjSpec.from_string(xml), dt=dt, contact=ContactParams(friction=mu_rod, condim=3))
+    x = shapes.straight(0.5, 32, start=(0.0, 0.0, RADIUS), direction=(-1.0, 0.0, 0.0))
+    x0 = x.copy()
+    x0[0, 2] = z
+    rod = Rod(x, Material(young=1e7, radius=RADIUS))
+    world.add_rod(rod, "rod", start="pin", start_body="cart", x=x0)
+    world.compile()
+    return world, world.rods[0]
+
+
+def test_the_servo_dragging_a_cable_feels_kinetic_friction():
+    """The cart drags the cable at 0.2 m/s; from 0.7 s (past the start transient) to 1.5 s
+    the servo's force (data.actuator_force) equals mu * lambda * L * g within 3 %, mu the
+    contact's friction (MuJoCo takes the larger of the geom's 0.3 and the rod's 0.5: checked
+    on data.contact) and lambda L g the load the floor carries: the free vertices' weight
+    less what the cart holds up (the z of World.reaction, the rod's force on the cart). The
+    cart has no damping or friction and moves at constant speed, so the servo's force is
+    the cable's pull; each sliding contact of MuJoCo's pyramidal cone (condim 3, its
+    tangent along x) gives mu times its normal force (derods' contact forces: 0.500). The
+    3 %: the normal load fluctuates step to step as the sliding cable hops, averaged over
+    800 steps."""
+    dt, speed = 1e-3, 0.2
+    world, rod = _dragged_cable(dt, 0.3, 0.5, speed)
+    d = world.data
+    free_weight = float(rod.vertex_mass[1:].sum()) * 9.81
+    force, load, mu = [], [], set()
+    try:
+        while d.time < 1.5:
+            d.ctrl[0] = speed * d.time
+            world.step()
+            if d.time > 0.7:
+                force.append(float(d.actuator_force[0]))
+                load.append(free_weight + float(world.reaction("rod", "start")[0][2]))
+                mu.update(float(d.contact[i].friction[0]) for i in range(d.ncon))
+    except DivergenceError as err:
+        pytest.fail(f"diverged: {err}")
+    assert mu == {0.5}, f"contact friction {mu}: the closed form's mu is the larger of 0.3 and 0.5"
+    expected = 0.5 * float(np.mean(load))
+    assert float(np.mean(force)) == pytest.approx(expected, rel=3e-2), \
+        f"servo {np.mean(force):.4g} N, mu lambda L g = {expected:.4g} N"
+
+
+@pytest.mark.parametrize("dt", [1e-3, 1e-2])
+def test_the_reaction_of_a_rod_clamped_to_a_held_body_is_its_weight(dt):
+    """A 0.4 m rod (E = 1e9, 32 edges, tip drop 2.4 cm) clamped level to a 1 kg body on a
+    vertical slide held by the slide's spring (1000 N/m, critically damped), settled (mass
+    damping 1.4 times the first mode's rate, until nothing moves faster than 1e-10 m/s):
+    World.reaction(rod, "start") - the elastic force on the held vertices, world frame,
+    the moment about the clamp (the middle of the held edge) - equals the weight of the
+    free vertices and the moment of that weight about the clamp at their settled positions,
+    within 1e-6 relative. The held vertices are the body's own MuJoCo children, so MuJoCo
+    carries their weight and reaction() leaves it out. Static equilibrium of the free
+    vertices makes it exact (the elastic forces have no net force or moment); what is left
+    is the residual motion (< 1e-8 relative; measured 1e-9)."""
+    xml = """<mujoco><worldbody><body name="holder" pos="0 0 1">
+      <joint name="z" type="slide" axis="0 0 1" stiffness="1000" damping="63"/>
+      <geom type="box" size="0.02 0.02 0.02" mass="1" contype="0" conaffinity="0"/></body></worldbody></mujoco>"""
+    mat = Material(young=1e9, radius=RADIUS)
+    rate = 1.875**2 * math.sqrt(mat.alpha / (mat.line_density * 0.4**4))
+    world = World(mujoco.MjSpec.from_string(xml), dt=dt, mass_damping=1.4 * rate)
+    world.add_rod(Rod(shapes.cantilever(0.4, 32, start=(0.0, 0.0, 1.0)), mat), "rod", start="clamp",
+                  start_body="holder")
+    world.compile()
+    d = world.data
+    try:
+        while d.time < 20.0:
+            world.step(50)
+            if max(np.abs(world.velocities()).max(), abs(d.qvel[0])) < 1e-10:
+                break
+    except DivergenceError as err:
+        pytest.fail(f"diverged: {err}")
+    assert d.time < 20.0, "did not settle"
+    x = world.positions("rod")
+    weight = world.rods[0].vertex_mass[:, None] * np.asarray(world.model.opt.gravity)
+    clamp = x[:2].mean(axis=0)
+    force, moment = world.reaction("rod", "start")
+    np.testing.assert_allclose(force, weight[2:].sum(axis=0), rtol=0, atol=1e-6 * np.linalg.norm(weight[2:].sum(0)))
+    expected = np.cross(x[2:] - clamp, weight[2:]).sum(axis=0)
+    np.testing.assert_allclose(moment, expected, rtol=0, atol=1e-6 * np.linalg.norm(expected))
+
+
+def _case_id(c: held.Case) -> str:
+    return f"{c.scenario}-{c.holder}-{c.mass:g}kg-{c.end}-dt{c.dt:g}"
+
+
+#: Quick-sweep cases that fail today, each for a reason measured (issue 27 stays open on them).
+KNOWN = {
+    # the cable drawn over the ledge's edge at dt 1e-2 dips 4.4 mm into it (limit r = 3 mm):
+    # discrete detection (a vertex moving at v is found up to v h inside); the same scene on a
+    # mocap cart, with no holder dofs, dips 5.8 mm
+    "edge-slide-0.01kg-pin-dt0.01": "dt 1e-2: a cable over the ledge dips deeper than r (the mocap cart: 5.8 mm)",
+}
+
+
+def _quick_cases():
+    for c in held.grid(quick=True):
+        if c.holder == "mocap":
+            continue  # the reference without holder dofs (bench_held's table shows it), not judged here
+        reason = KNOWN.get(_case_id(c))
+        yield pytest.param(c, id=_case_id(c), marks=[pytest.mark.xfail(strict=True, reason=reason)] if reason else [])
+
+
+@pytest.mark.parametrize("case", list(_quick_cases()))
+def test_the_quick_sweep_case_is_ok(case):
+    """One case of the quick sweep (derods/bench/held.py, benchmarks/bench_held.py): stable
+    and its scenario's criterion met; each criterion's tolerance is named in held.py's
+    module docstring (fall: 1e-4 L; land: at rest within 1 mm of the floor, vertices above
+    r/2; drag, edge, lift: never through the surface (a vertex centre r inside), resting
+    above r/2 at the end; swing: the energy)."""
+    r = held.run(case)
+    assert r["ok"], f"{'stable' if r['stable'] else 'UNSTABLE'}: {r['note']} {r['values']}"
+
+
+@pytest.mark.parametrize("end", ["pin", "clamp"])
+def test_a_held_edge_does_not_push_on_its_holder(end):
+    """A box landing on a floor, its held edge starting on the box's face (the land scene,
+    the box colliding). MuJoCo lists the flex-geom contact of the held edge with its own
+    box (its exclusions are for body pairs, not flex elements); derods gives exactly those
+    rows no force, as MuJoCo never collides a body with its children, and solves every
+    other row (the box's and the rod's on the floor). With ContactParams(holder_contact=True)
+    no row is dropped. Exact: the rows are picked by geom and flex element."""
+    for holder_contact in (False, True):
+        world = held.build(held.Case("land", "free", mass=1.0, end=end, dt=1e-3)).world
+        coupled = world._step.coupled
+        coupled.holder_contact = holder_contact
+        m, d = world.model, world.data
+        flex = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_FLEX, "rod")
+        box = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "holder")
+        seen_own = seen_other = 0
+        for _ in range(150):  # the box lands at step ~78
+            world.step()
+            own = np.array([(c.flex[0] == flex and c.geom[1] == box) or (c.flex[1] == flex and c.geom[0] == box)
+                            for c in (d.contact[i] for i in range(d.ncon))], dtype=bool)
+            rows = coupled._own_holder_rows(d)
+            contact_rows = np.isin(d.efc_type[:d.nefc], [int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL)])
+            expected = np.zeros(d.nefc, dtype=bool)
+            expected[contact_rows] = own[d.efc_id[:d.nefc][contact_rows]]
+            if holder_contact:
+                assert rows is None
+            else:
+                np.testing.assert_array_equal(np.zeros(d.nefc, bool) if rows is None else rows, expected)
+            seen_own += int(own.any())
+            seen_other += int((~own).any())
+        assert seen_own and seen_other, "the scene should show both kinds of contact"
+
+
+def _rope_on_weights(mode: str, dt: float) -> World:
+    """A rope (r 3 mm, E 1e6 Pa) laid over a fixed horizontal cylinder (R 5 cm, friction 0.3)
+    and down 0.15 m on each side, each end pinned to a 0.5 kg weight on a vertical slide."""
+    c = 0.05 + RADIUS
+    arc = np.linspace(np.pi, 0.0, 40)
+    top = np.column_stack([c * np.cos(arc), 0 * arc, 0.5 + c * np.sin(arc)])
+    left = np.column_stack([np.full(20, -c), np.zeros(20), np.linspace(0.35, 0.5, 21)[:-1]])
+    right = left[::-1].copy()
+    right[:, 0] = c
+    x = np.vstack([left, top, right])
+    spec = mujoco.MjSpec()
+    g = spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[0.05, 0.1, 0], pos=[0, 0, 0.5],
+                                quat=[math.sqrt(0.5), math.sqrt(0.5), 0, 0])
+    g.friction = [0.3, 0.005, 0.0001]
+    for name, p in (("wl", x[0]), ("wr", x[-1])):
+        b = spec.worldbody.add_body(name=name, pos=p)
+        b.add_joint(type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 0, 1])
+        b.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.01, 0, 0], mass=0.5, contype=0, conaffinity=0)
+    world = World(spec, dt=dt, mode=mode, contact=ContactParams(friction=0.3))
+    world.add_rod(Rod(x, Material(radius=RADIUS, young=1e6, density=1000.0), natural_curvature=False), "rope",
+                  start="pin", end="pin", start_body="wl", end_body="wr")
+    return world
+
+
+@pytest.mark.parametrize("mode", ["implicit", "alpha"])
+def test_a_rope_over_a_cylinder_holds_two_equal_weights(mode):
+    """Equal weights on the two ends of a rope over a cylinder: nothing should move. The
+    contact force must reach the weights through the rope (one solve of rope, weights and
+    contacts): before, both weights fell freely and pulled the rope through the cylinder
+    (4.5 m lower after 1 s in the alpha mode). After 0.3 s at dt 1e-3: each weight within 3 mm
+    of its start (the rope's stretch and the contacts' soft give under 4.9 N: measured
+    1.1 mm), the rope less than r into the cylinder."""
+    world = _rope_on_weights(mode, 1e-3)
+    world.compile()
+    m, d = world.model, world.data
+    start = [float(d.xpos[m.body(n).id][2]) for n in ("wl", "wr")]
+    world.step(300)
+    for n, z0 in zip(("wl", "wr"), start):
+        assert abs(d.xpos[m.body(n).id][2] - z0) < 3e-3, f"weight {n} moved {d.xpos[m.body(n).id][2] - z0:.4g} m"
+    x = world.positions("rope")
+    depth = 0.05 + RADIUS - float(np.min(np.hypot(x[:, 0], x[:, 2] - 0.5)))
+    assert depth < RADIUS, f"the rope is {depth:.3g} m into the cylinder"
