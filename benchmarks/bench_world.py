@@ -21,6 +21,10 @@ Cases:
 * R = 1, 10, 100 rods of 32 vertices (h = 1 cm, r = 2 mm, E = 1e8 Pa, dt = 1e-2 s),
   hanging from a clamp and lying on the floor; then the marginal cost of one more
   rod, (t(100) - t(10)) / 90, and the build times.
+* held (derods only): the held-rods sweep's cable lying on a floor (0.5 m, 32 edges,
+  r = 3 mm, E = 1e7 Pa, dt = 5e-3 s, derods.bench.held "drag" at rest), its start pinned or
+  clamped to a 1 kg cart on a servo-driven slide (the coupled solve of rods, holder and
+  contacts) against the same cable held by a mocap cart; target: ratio <= 1.5.
 * pruning (derods only): the n = 200 cantilever with a free end and no obstacle,
   against the same with both ends clamped (twist term and solve) and with a floor
   far below (collision checks that find nothing).
@@ -169,6 +173,23 @@ def run_pruning(repeat: int, out: dict) -> None:
         print(f"  {label:28s} {t:8.0f}  ({t - base:+.0f})")
 
 
+def run_held(repeat: int, out: dict) -> None:
+    """A cable lying on a floor held by a cart with dofs against the same held by a mocap
+    cart, interleaved runs, median us per step."""
+    from derods.bench import held
+
+    print("\nheld by a body with dofs (1 kg slide cart) vs by a mocap cart, cable lying on a floor")
+    for end in ("pin", "clamp"):
+        runs = {"slide": [], "mocap": []}
+        for r in range(repeat):
+            for holder in (("slide", "mocap") if r % 2 == 0 else ("mocap", "slide")):
+                world = held.build(held.Case("drag", holder, mass=1.0, end=end, dt=5e-3)).world
+                runs[holder].append(median_us(world, 300, 50))
+        a, b = float(np.median(runs["slide"])), float(np.median(runs["mocap"]))
+        out[f"held {end}: slide cart vs mocap"] = {"slide_us": a, "mocap_us": b, "ratio": a / b}
+        print(f"  {end:6s} slide {a:8.0f}  mocap {b:8.0f}  ratio {a / b:5.2f}", flush=True)
+
+
 def run_case(name, case, repeat: int, out: dict) -> None:
     der_build, flex_build, steps, warm = case
     ours, theirs, builds = [], [], {"der": [], "flex": []}
@@ -217,6 +238,7 @@ def main(argv=None):
         print("\nbuild time [s] (median): " + "; ".join(
             f"{k}: {v['build_s_derods']:.2f} / {v['build_s_flex']:.2f}" for k, v in out.items()
             if k.startswith("R = ") and "build_s_derods" in v))
+    run_held(args.repeat, out)
     if not args.quick:
         run_pruning(args.repeat, out)
     if args.json:

@@ -212,8 +212,14 @@ def definite(schur: np.ndarray, metric: np.ndarray) -> np.ndarray | None:
     M went 1, 0.42, -0.61 and the step diverged). The Gauss-Newton model has S >= M (the
     rods' stiffness as the holders feel it, a Schur complement of a PSD matrix, adds to
     their inertia), so the generalized eigenvalues of (S, M) below 1 are raised to 1."""
+    sym = 0.5 * (schur + schur.T)
+    try:  # S - M >= 0 but for round-off (a rigid mode leaves it singular): nothing to do
+        np.linalg.cholesky(sym - (1.0 - 1e-9) * metric)
+        return None
+    except np.linalg.LinAlgError:
+        pass
     chol = np.linalg.cholesky(metric)
-    t = np.linalg.solve(chol, np.linalg.solve(chol, 0.5 * (schur + schur.T)).T)
+    t = np.linalg.solve(chol, np.linalg.solve(chol, sym).T)
     lam, vec = np.linalg.eigh(0.5 * (t + t.T))
     if lam.min() >= 1.0:
         return None

@@ -101,13 +101,6 @@ def translation_mode(model: mujoco.MjModel, layout, dofs: np.ndarray, bodies) ->
     return mode
 
 
-def band_entry(ab: np.ndarray, i: int, j: int) -> float:
-    """H[i, j] of a symmetric matrix kept as its lower band ab (rows, n)."""
-    if i < j:
-        i, j = j, i
-    return float(ab[i - j, j]) if i - j < ab.shape[0] else 0.0
-
-
 def invariant(k_qq: np.ndarray, k_qf_sum: np.ndarray, mode: np.ndarray) -> np.ndarray:
     """k_qq (k, k) made symmetric and exact on the translation mode (k, 3): the nearest
     symmetric matrix K with K mode = -k_qf_sum (k, 3) (= -K_qf 1, what translation
@@ -161,6 +154,29 @@ class Holders:
         self._terms_all = Terms.empty(rods.n_rods, rods.n_vertices, 0, band_rows)
         self._translation = translation_mode(model, layout, self.dofs, self.bodies)
         self._dynamics = TreeDynamics(model)
+        self._blocks = self._block_entries(layout, rods.v_off, band_rows)
+
+    def _block_entries(self, layout, v_off, band_rows: int) -> tuple[np.ndarray, ...]:
+        """Where K_fh's entries sit: (rod, band row, band column) of the compiled step's
+        bands and (row, column) in K_fh (n, 3H), for every free dof within the band of a
+        held vertex (static: the layout fixes them)."""
+        rows = band_rows // 3 + 1  # vertices either side within reach of the band
+        src, dst = [], []
+        for c, (h, rod) in enumerate(zip(self.held, self._rod_of_held)):
+            ph = self._place_all[h]
+            for v in range(max(v_off[rod], h - rows), min(v_off[rod + 1], h + rows + 1)):
+                p = layout.place[v]
+                if p < 0:
+                    continue
+                pv = self._place_all[v]
+                for r in range(3):
+                    for a in range(3):
+                        i, j = 3 * pv + r, 3 * ph + a
+                        if abs(i - j) < band_rows:
+                            src.append((rod, abs(i - j), min(i, j)))
+                            dst.append((3 * p + r, 3 * c + a))
+        src, dst = np.array(src, dtype=np.int64).reshape(-1, 3), np.array(dst, dtype=np.int64).reshape(-1, 2)
+        return src[:, 0], src[:, 1], src[:, 2], dst[:, 0], dst[:, 1]
 
     def __bool__(self) -> bool:
         return len(self.dofs) > 0
@@ -229,18 +245,11 @@ class Holders:
         lay, t = step.layout, self._terms_all
         evaluate(step.rods, step.frames.copy(), step.x, self._place_all, t, step.ends, step.xmat, np.inf,
                  self._bands, self._band_of_rod)
-        v_off, rows = step.rods.v_off, self._bands.shape[1] // 3 + 1
         out = np.zeros((lay.n, 3 * len(self.held)))
+        rod, d, j, row, col = self._blocks
+        out[row, col] = self._bands[rod, d, j]
+        v_off = step.rods.v_off
         for c, (h, rod) in enumerate(zip(self.held, self._rod_of_held)):
-            ab, ph = self._bands[rod], self._place_all[h]
-            for v in range(max(v_off[rod], h - rows), min(v_off[rod + 1], h + rows + 1)):
-                p = lay.place[v]
-                if p < 0:
-                    continue
-                pv = self._place_all[v]
-                for r in range(3):
-                    for a in range(3):
-                        out[3 * p + r, 3 * c + a] = band_entry(ab, 3 * pv + r, 3 * ph + a)
             if rod in step.rod_tw:
                 lo, hi = v_off[rod], v_off[rod + 1]
                 free = lay.place[lo:hi] >= 0
