@@ -105,3 +105,18 @@ def test_a_free_rod_pinned_to_a_free_body_keeps_its_linear_momentum():
             world.step()
             drift = max(drift, np.linalg.norm(momentum() - p0) / np.linalg.norm(p0))
         assert drift < 1e-9, (mass, drift)
+
+
+def test_rotational_dofs_are_told_from_translations():
+    """Hinges, balls and a free joint's last three dofs turn their body; slides and a free
+    joint's first three do not (numpy's int32 joint type is never `in` a tuple of MuJoCo's
+    enums: every hinge was taken for a translation, and a clamp on a hinged body lost its
+    frame-turning column)."""
+    xml = """<mujoco><worldbody>
+      <body><joint type="hinge"/><geom size=".1"/></body>
+      <body pos="1 0 0"><joint type="ball"/><geom size=".1"/></body>
+      <body pos="2 0 0"><joint type="slide"/><geom size=".1"/></body>
+      <body pos="3 0 0"><freejoint/><geom size=".1"/></body>
+    </worldbody></mujoco>"""
+    m = mujoco.MjModel.from_xml_string(xml)
+    assert [holders.rotational(m, i) for i in range(m.nv)] == [True] * 4 + [False] + [False] * 3 + [True] * 3

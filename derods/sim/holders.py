@@ -74,10 +74,10 @@ def chain_dofs(model: mujoco.MjModel, body: int) -> np.ndarray:
 def rotational(model: mujoco.MjModel, dof: int) -> bool:
     """Whether a dof turns its body (hinge, ball, a free joint's last three)."""
     j = int(model.dof_jntid[dof])
-    kind = model.jnt_type[j]
-    if kind == mujoco.mjtJoint.mjJNT_FREE:
+    kind = int(model.jnt_type[j])  # an int: `numpy.int32 in (mjtJoint, ...)` is always False
+    if kind == int(mujoco.mjtJoint.mjJNT_FREE):
         return dof - int(model.jnt_dofadr[j]) >= 3
-    return kind in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_BALL)
+    return kind in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_BALL))
 
 
 def translation_mode(model: mujoco.MjModel, layout, dofs: np.ndarray, bodies) -> np.ndarray | None:
@@ -155,6 +155,7 @@ class Holders:
         self._translation = translation_mode(model, layout, self.dofs, self.bodies)
         self._dynamics = TreeDynamics(model)
         self._blocks = self._block_entries(layout, rods.v_off, band_rows)
+        self._held_blocks = self._held_entries(band_rows)
 
     def _block_entries(self, layout, v_off, band_rows: int) -> tuple[np.ndarray, ...]:
         """Where K_fh's entries sit: (rod, band row, band column) of the compiled step's
@@ -175,6 +176,21 @@ class Holders:
                         if abs(i - j) < band_rows:
                             src.append((rod, abs(i - j), min(i, j)))
                             dst.append((3 * p + r, 3 * c + a))
+        src, dst = np.array(src, dtype=np.int64).reshape(-1, 3), np.array(dst, dtype=np.int64).reshape(-1, 2)
+        return src[:, 0], src[:, 1], src[:, 2], dst[:, 0], dst[:, 1]
+
+    def _held_entries(self, band_rows: int) -> tuple[np.ndarray, ...]:
+        """Where K_hh's entries sit (as :meth:`_block_entries`): the band's blocks among the
+        held vertices of one rod, (rod, band row, band column) and (row, column) in K_hh."""
+        src, dst = [], []
+        for c1, (h1, r1) in enumerate(zip(self.held, self._rod_of_held)):
+            for c2, (h2, r2) in enumerate(zip(self.held, self._rod_of_held)):
+                for a in range(3):
+                    for b in range(3):
+                        i, j = 3 * self._place_all[h1] + a, 3 * self._place_all[h2] + b
+                        if r1 == r2 and abs(i - j) < band_rows:
+                            src.append((r1, abs(i - j), min(i, j)))
+                            dst.append((3 * c1 + a, 3 * c2 + b))
         src, dst = np.array(src, dtype=np.int64).reshape(-1, 3), np.array(dst, dtype=np.int64).reshape(-1, 2)
         return src[:, 0], src[:, 1], src[:, 2], dst[:, 0], dst[:, 1]
 
@@ -206,6 +222,8 @@ class Holders:
         ds.mocap_pos[:], ds.mocap_quat[:] = d.mocap_pos, d.mocap_quat
         turns = bool(np.any(step.ends.body >= 0))
         for j, dof in enumerate(self.dofs):
+            if not self._eps_rot[j]:
+                continue  # a translation: its row and column are the band's (below)
             eps = self._eps[j]
             gens, grads = [], []
             for sign in (1.0, -1.0):
@@ -233,6 +251,17 @@ class Holders:
             mujoco.mj_jac(m, d, self._jacp, self._jacr, x[v], int(step.layout.body[v]))
             jac[3 * c:3 * c + 3] = self._jacp[:, self.dofs]
         k_f = self.held_blocks(step) @ jac + frame
+        # Translations: K_qq's rows and columns J^T K_hh J, the band's own Gauss-Newton blocks
+        # (moving a body along a line moves its held points rigidly, no lever turns); the
+        # rotations' by the differences above, made symmetric.
+        t, r = ~self._eps_rot, self._eps_rot
+        if t.any():
+            k_hh = np.zeros((3 * len(self.held), 3 * len(self.held)))
+            rod, dd, col, row, cc = self._held_blocks
+            k_hh[row, cc] = self._bands[rod, dd, col]
+            gn = jac[:, t].T @ k_hh @ jac[:, t]
+            k_q[np.ix_(t, t)] = 0.5 * (gn + gn.T)
+            k_q[np.ix_(r, t)] = k_q[np.ix_(t, r)].T  # the rotations' columns, differenced, give both
         if self._translation is not None:
             # K_qf times every free vertex moved along x, y, z: k_f's rows summed by axis
             k_q = invariant(k_q, k_f.reshape(-1, 3, k).sum(axis=0).T, self._translation)
