@@ -1,14 +1,15 @@
 """Rods held by bodies under gravity and in contact (issue 27): the sweep of derods/bench/held.py.
 
 Runs :func:`derods.bench.held.grid` (the full grid: every scenario x holder x holder mass
-1e-3 .. 1e4 kg x pin / clamp x dt 1e-3, 5e-3, 1e-2, and the corners E in {1e5, 1e10} Pa x
-n in {20, 100}; ``--quick``: 24 cases), one :func:`derods.bench.held.run` per case, in
+1e-3 .. 1e4 kg x pin / clamp x dt 1e-3, 5e-3, 1e-2, the corners E in {1e5, 1e10} Pa x
+n in {20, 100}, and the cart scenes on a mocap cart: 410 cases; ``--quick``: 33;
+``--mode``: every case in another mode), one :func:`derods.bench.held.run` per case, in
 ``--workers`` processes; writes one JSON record per line to ``--out`` (atomically: a temp
 file, then os.replace) and prints, per scenario x holder, how many cases are ok of how
 many, then every failure with its note. It measures: the exit code is 0 whatever it finds.
 
 Run: .venv/bin/python benchmarks/bench_held.py [--quick] [--workers N] [--out results.jsonl]
-     [--strain-limit inf]
+     [--strain-limit inf] [--mode alpha]
 """
 
 from __future__ import annotations
@@ -76,15 +77,19 @@ def table(records: list[dict]) -> str:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="the quick grid (24 cases)")
+    ap.add_argument("--quick", action="store_true", help="the quick grid (33 cases)")
     ap.add_argument("--workers", type=int, default=1, help="processes (default 1)")
     ap.add_argument("--out", default="bench_held.jsonl", help="JSON lines written here")
     ap.add_argument("--strain-limit", type=float, default=None,
                     help="World's strain limit for every case (default: World's own; inf turns it off, to probe)")
+    ap.add_argument("--mode", default="auto", choices=("auto", "implicit", "alpha", "projection"),
+                    help="World's mode for every case (default auto: implicit here)")
     args = ap.parse_args()
     from tqdm import tqdm
 
     fields = {} if args.strain_limit is None else {"strain_limit": args.strain_limit}
+    if args.mode != "auto":
+        fields["mode"] = args.mode
     cases = held.grid(quick=args.quick, **fields)
     t0 = time.perf_counter()
     with tqdm(total=len(cases), desc="held rods", unit="case") as bar:

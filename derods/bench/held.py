@@ -90,7 +90,8 @@ HEIGHT_RISE = 1e-3    #: swing: no vertex ever higher than its start by this [m]
 class Case:
     """One run. scenario, holder: see SCENARIOS; mass: the holder's [kg]; end: "pin" or
     "clamp" (the start); dt [s]; young E [Pa]; n_edges; radius [m]; density [kg/m^3];
-    strain_limit: World's (None: its default; a knob for probes); collide: fall only, the
+    strain_limit: World's (None: its default; a knob for probes); mode: World's ("auto" picks
+    "implicit" here; "alpha", "projection" to cross the modes); collide: fall only, the
     box collides (MuJoCo's default contype); duration [s] (None: DURATION[scenario]);
     friction: of the rod and the static geoms (None: the defaults, 1 for both)."""
 
@@ -104,6 +105,7 @@ class Case:
     radius: float = 3e-3
     density: float = 1000.0
     strain_limit: float | None = None
+    mode: str = "auto"
     collide: bool = False
     duration: float | None = None
     friction: float | None = None
@@ -153,7 +155,7 @@ def _world(case: Case, xml, x: np.ndarray, natural: bool = True, raised: float =
         contact = ContactParams(friction=case.friction)
         for g in spec.geoms:
             g.friction = [case.friction, g.friction[1], g.friction[2]]
-    world = World(spec, dt=case.dt, strain_limit=case.strain_limit, contact=contact)
+    world = World(spec, dt=case.dt, mode=case.mode, strain_limit=case.strain_limit, contact=contact)
     x0 = x.copy()
     x0[:1 if case.end == "pin" else 2, 2] += raised
     world.add_rod(Rod(x, case.material, natural_curvature=natural), "rod", start=case.end, start_body="holder",
@@ -410,7 +412,7 @@ def grid(quick: bool = False, **fields) -> list[Case]:
     corners E in {1e5, 1e10} Pa x n in {20, 100} at 1 kg, dt 1e-2, pin and clamp, for
     CORNER_SCENARIOS (edge and lift judge a flexible cable's shape); a mocap cart (the reference: no
     holder dofs) at one mass. quick: 3 per
-    scenario x holder (24), light, unit and heavy holders at the three steps. ``fields``:
+    scenario x holder (33), light, unit and heavy holders at the three steps. ``fields``:
     Case fields set on every case (e.g. strain_limit=math.inf, to probe)."""
     pairs = [(s, h) for s, hs in SCENARIOS.items() for h in hs]
     if quick:

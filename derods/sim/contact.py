@@ -255,30 +255,57 @@ class ContactStep:
 
     def _with_trees(self, data, system, a0, trees) -> int:
         """The contact solve with the given trees' dofs appended to the rods' (see the class)."""
-        m, n, s = self.model, len(a0), system.s
-        sizes = m.tree_dofnum[trees].astype(np.int64)
+        n, sizes = len(a0), self.model.tree_dofnum[trees].astype(np.int64)
+        ext = WithTrees(self.model, data, system, self, trees, a0)
+        dof_off = np.concatenate([self.dof_off, n + np.cumsum(sizes)])
+        a_out, force_out = np.zeros(ext.n), np.zeros(ext.n)
+        touched = self._solve(data, system, ext.local_of_dof, dof_off, ext.k_band, ext.a_band, ext.lt, ext.g, ext.z,
+                              ext.mass, ext.a0, a_out, force_out)
+        self.a[:], self.force[:] = a_out[:n], force_out[:n]
+        ext.write(data, a_out[n:])
+        return touched
+
+
+class WithTrees:
+    """The rods' factored system (n dofs) with the k dofs of the kinematic trees ``trees``
+    appended as band blocks of their M - h D (scaled into the band's s K, so that
+    s K + m_coef M is it on them); local_of_dof (nv,) maps MuJoCo dofs to the n + k, a0
+    (n + k,) [m/s^2] the rods' unconstrained acceleration and the trees' without constraint
+    forces. With no trees, the rods' own arrays."""
+
+    def __init__(self, m, d, system, contact: ContactStep, trees, a0):
+        self.contact = contact
+        n, s = system.n, system.s
+        if not len(trees):
+            self.n, self.local_of_dof = n, contact.local_of_dof
+            self.k_band, self.a_band, self.lt = system.k_band, system.a_band, system.lt
+            self.g, self.z, self.mass, self.a0 = system.g, system.z, system.mass, a0.copy()
+            self.dofs = np.zeros(0, np.int64)
+            return
         dofs = tree_dofs(m, trees)
         k = len(dofs)
-        metric = self._dynamics.metric(m, data, dofs)  # block diagonal over the trees
+        metric = contact._dynamics.metric(m, d, dofs)
         rows = system.a_band.shape[0]
         band = np.zeros((rows, k))
         for dd in range(min(rows, k)):
             band[dd, :k - dd] = np.diagonal(metric, -dd)
         lt = np.zeros((k, rows))
         cholesky_into(band, lt)
-        local = self.local_of_dof.copy()
+        local = contact.local_of_dof.copy()
         local[dofs] = n + np.arange(k)
-        dof_off = np.concatenate([self.dof_off, n + np.cumsum(sizes)])
         zeros = np.zeros(k)
-        a_b0 = np.linalg.solve(metric, data.qfrc_smooth[dofs])  # no constraint force on the trees
-        a_out, force_out = np.zeros(n + k), np.zeros(n + k)
-        touched = self._solve(data, system, local, dof_off, np.hstack([system.k_band, band / s]),
-                              np.hstack([system.a_band, band]), np.vstack([system.lt, lt]),
-                              np.concatenate([system.g, zeros]), np.concatenate([system.z, zeros]),
-                              np.concatenate([system.mass, zeros]), np.concatenate([a0, a_b0]), a_out, force_out)
-        self.a[:], self.force[:] = a_out[:n], force_out[:n]
-        self._dynamics.write(data, dofs, metric, a_out[n:])
-        return touched
+        self.n, self.local_of_dof, self.dofs, self.metric = n + k, local, dofs, metric
+        self.k_band = np.hstack([system.k_band, band / s])
+        self.a_band = np.hstack([system.a_band, band])
+        self.lt = np.vstack([system.lt, lt])
+        self.g, self.z = np.concatenate([system.g, zeros]), np.concatenate([system.z, zeros])
+        self.mass = np.concatenate([system.mass, zeros])
+        self.a0 = np.concatenate([a0, np.linalg.solve(metric, d.qfrc_smooth[dofs])])
+
+    def write(self, d, qacc) -> None:
+        """The appended trees' acceleration, for MuJoCo's integrator to reproduce."""
+        if len(self.dofs):
+            self.contact._dynamics.write(d, self.dofs, self.metric, qacc)
 
 
 class ReferenceCorrection:

@@ -34,12 +34,10 @@ import mujoco
 import numpy as np
 
 from .._numba import contact as _k
-from .._numba.banded import cholesky_into
 from .._numba.contact_rows import efc_triplets, split_bordered_rows
 from .._numba.implicit import sm_solve_into
-from .contact import MAX_ITER, SUPPORTED, TOL, WINDOW, ContactStep
+from .contact import MAX_ITER, SUPPORTED, TOL, WINDOW, ContactStep, WithTrees
 from .holders import Holders
-from .trees import tree_dofs
 
 
 class CoupledStep:
@@ -84,7 +82,7 @@ class CoupledStep:
         h_qq[np.ix_(c, c)] += s * k_q
         # The rods' system, extended by the trees the rows bind to rods this step.
         trees = self.contact._touching_trees(d) if (self.contact.bodies and d.nefc) else np.zeros(0, np.int64)
-        ext_sys = _Extended(m, d, sysm, self.contact, trees, step.a0)
+        ext_sys = WithTrees(m, d, sysm, self.contact, trees, step.a0)
         nn = ext_sys.n
         if d.nefc:
             row, col, val = efc_triplets(self.is_sparse, d.nefc, m.nv, d.efc_J, d.efc_J_rownnz, d.efc_J_rowadr,
@@ -245,43 +243,3 @@ def _element_holders(model: mujoco.MjModel, layout, bodies: np.ndarray) -> np.nd
             for side in (0, 1):
                 out[model.flex_elemadr[f] + e, side] = parent_of.get(int(bodies[e, side]), -1)
     return out
-
-
-class _Extended:
-    """The rods' factored system with the dofs of the trees in ``trees`` appended as band
-    blocks of their M - h D (scaled into the band's s K so that s K + m_coef M is it),
-    as :class:`ContactStep` does; local_of_dof (nv,) maps MuJoCo dofs to the n + k of them."""
-
-    def __init__(self, m, d, system, contact: ContactStep, trees, a0):
-        self.contact = contact
-        n, s = system.n, system.s
-        if not len(trees):
-            self.n, self.local_of_dof = n, contact.local_of_dof
-            self.k_band, self.a_band, self.lt = system.k_band, system.a_band, system.lt
-            self.g, self.z, self.mass, self.a0 = system.g, system.z, system.mass, a0.copy()
-            self.dofs = np.zeros(0, np.int64)
-            return
-        dofs = tree_dofs(m, trees)
-        k = len(dofs)
-        metric = contact._dynamics.metric(m, d, dofs)
-        rows = system.a_band.shape[0]
-        band = np.zeros((rows, k))
-        for dd in range(min(rows, k)):
-            band[dd, :k - dd] = np.diagonal(metric, -dd)
-        lt = np.zeros((k, rows))
-        cholesky_into(band, lt)
-        local = contact.local_of_dof.copy()
-        local[dofs] = n + np.arange(k)
-        zeros = np.zeros(k)
-        self.n, self.local_of_dof, self.dofs, self.metric = n + k, local, dofs, metric
-        self.k_band = np.hstack([system.k_band, band / s])
-        self.a_band = np.hstack([system.a_band, band])
-        self.lt = np.vstack([system.lt, lt])
-        self.g, self.z = np.concatenate([system.g, zeros]), np.concatenate([system.z, zeros])
-        self.mass = np.concatenate([system.mass, zeros])
-        self.a0 = np.concatenate([a0, np.linalg.solve(metric, d.qfrc_smooth[dofs])])
-
-    def write(self, d, qacc) -> None:
-        """The appended trees' acceleration, for MuJoCo's integrator to reproduce."""
-        if len(self.dofs):
-            self.contact._dynamics.write(d, self.dofs, self.metric, qacc)
