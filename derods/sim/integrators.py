@@ -293,22 +293,28 @@ class Implicit(Step):
         return self.contact.force
 
 
-class Projection(Step):
+class Projection(Implicit):
     """The DER paper's method: implicit bending and twisting, inextensibility by fast
     projection (:mod:`derods.sim.projection`); MuJoCo resolves contacts with the bare
-    vertex masses, as in the explicit mode."""
+    vertex masses, as in the explicit mode. Where bodies with dofs hold rods, the step is
+    the implicit mode's one solve of rods, holders and contacts (:mod:`derods.sim.coupled`)
+    with every open rod projected onto its rest lengths after it (a strain limit of 0):
+    applied one step late, the rods' reaction made a light holder diverge."""
 
     mode = "projection"
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         lay = self.layout
-        self.inv_mass = np.zeros(len(lay.x0))
-        self.inv_mass[lay.free_vertex] = 1.0 / lay.mass[0::3]
-        self._xp = np.zeros_like(lay.x0)
         self._accel = np.zeros(lay.n)
+        if self.holders:
+            self.limited = np.array([not e.rod.closed for e in self.entries])
+            self.strain_limit = 0.0
 
     def step(self) -> None:
+        if self.holders:
+            Implicit.step(self)
+            return
         lay = self.layout
         self.elastic()
         self.unconstrained()
