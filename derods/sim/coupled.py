@@ -26,6 +26,12 @@ solves with the band's Cholesky factor and the border's Schur complement; row we
 keep MuJoCo's impedance in this metric (D = 1 / (R / diagA * diag(J H^-1 J^T))). The
 holders' trees get the acceleration found, written as the force that makes MuJoCo's
 integrator reproduce it (:mod:`derods.sim.trees`), and so do the touching trees.
+
+Three details keep it well posed. A held edge's contact with its own holder takes no
+force (MuJoCo excludes a body's parent and children, but not for flex elements). The
+holders' Schur complement is kept at least their inertia (:func:`definite`). And the
+strain limit runs once, after the solve, with the held vertices where MuJoCo's
+integrator takes their bodies (:meth:`CoupledStep._limit_strain`).
 """
 
 from __future__ import annotations
