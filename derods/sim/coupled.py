@@ -68,6 +68,10 @@ class CoupledStep:
         self.holder_contact = False
         self._elem_holder = _element_holders(model, layout, holders.bodies)
         self._qvel = np.zeros(model.nv)
+        #: Whether the dofs that move held points are all of their trees' (a cart, a box, an arm).
+        self._whole_tree = len(holders.dofs) == self.m
+        #: Geoms of the holders, whose contacts with a held edge are the edge's own.
+        self._holder_geom = np.isin(model.geom_bodyid, holders.bodies)
         #: The vertices riding on bodies with dofs, and their vertex bodies.
         riding = np.isin(model.body_rootid[layout.moved_body], model.body_rootid[holders.bodies])
         self._riding_vertex, self._riding_body = layout.moved_vertex[riding], layout.moved_body[riding]
@@ -84,8 +88,9 @@ class CoupledStep:
         n, mq, c = lay.n, self.m, hl._in_tree
         k_f, k_q = hl.stiffness_columns(step)
         metric = hl._dynamics.metric(m, d, hl.tree)
+        cc = slice(None) if self._whole_tree else np.ix_(c, c)  # the held-dof block of the tree's
         h_qq = metric.copy()
-        h_qq[np.ix_(c, c)] += s * k_q
+        h_qq[cc] += s * k_q
         # The rods' system, extended by the trees the rows bind to rods this step.
         trees = self.contact._touching_trees(d) if (self.contact.bodies and d.nefc) else np.zeros(0, np.int64)
         ext_sys = WithTrees(m, d, sysm, self.contact, trees, step.a0)
@@ -93,7 +98,8 @@ class CoupledStep:
         if d.nefc:
             row, col, val = efc_triplets(self.is_sparse, d.nefc, m.nv, d.efc_J, d.efc_J_rownnz, d.efc_J_rowadr,
                                          d.efc_J_colind)
-            supported = np.isin(d.efc_type[:d.nefc], SUPPORTED)
+            types = d.efc_type[:d.nefc]
+            supported = (types == SUPPORTED[0]) | (types == SUPPORTED[1])
             efc_force = d.efc_force[:d.nefc]
             own = self._own_holder_rows(d)
             if own is not None:  # neither solved nor MuJoCo's: no force at all
@@ -113,7 +119,7 @@ class CoupledStep:
         y = sysm.solve(s * k_f)  # A^-1 s K_fq, (n, k)
         y0 = start[:n] - (b + h) / s * (y @ v_q)
         schur = h_qq.copy()
-        schur[np.ix_(c, c)] -= s * (k_f.T @ y)
+        schur[cc] -= s * (k_f.T @ y)
         fix = definite(schur, metric)
         if fix is not None:
             schur += fix
@@ -188,6 +194,9 @@ class CoupledStep:
         if self.holder_contact or d.ncon == 0 or self._elem_holder is None:
             return None
         m, con = self.model, d.contact
+        geom = con.geom
+        if not (self._holder_geom[geom] & (geom >= 0)).any():
+            return None
         own = np.zeros(d.ncon, dtype=bool)
         for side in (0, 1):
             g, f, e = con.geom[:, side], con.flex[:, 1 - side], con.elem[:, 1 - side]

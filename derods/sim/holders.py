@@ -156,6 +156,8 @@ class Holders:
         self._dynamics = TreeDynamics(model)
         self._blocks = self._block_entries(layout, rods.v_off, band_rows)
         self._held_blocks = self._held_entries(band_rows)
+        self._turns = None
+        self._all_translations = not self._eps_rot.any()
 
     def _block_entries(self, layout, v_off, band_rows: int) -> tuple[np.ndarray, ...]:
         """Where K_fh's entries sit: (rod, band row, band column) of the compiled step's
@@ -220,7 +222,9 @@ class Holders:
         k = len(self.dofs)
         jac, frame, k_q = np.zeros((3 * len(self.held), k)), np.zeros((lay.n, k)), np.zeros((k, k))
         ds.mocap_pos[:], ds.mocap_quat[:] = d.mocap_pos, d.mocap_quat
-        turns = bool(np.any(step.ends.body >= 0))
+        if self._turns is None:  # clamps on bodies turn their frames (the world's layout: fixed)
+            self._turns = bool(np.any(step.ends.body >= 0))
+        turns = self._turns
         for j, dof in enumerate(self.dofs):
             if not self._eps_rot[j]:
                 continue  # a translation: its row and column are the band's (below)
@@ -259,9 +263,13 @@ class Holders:
             k_hh = np.zeros((3 * len(self.held), 3 * len(self.held)))
             rod, dd, col, row, cc = self._held_blocks
             k_hh[row, cc] = self._bands[rod, dd, col]
-            gn = jac[:, t].T @ k_hh @ jac[:, t]
-            k_q[np.ix_(t, t)] = 0.5 * (gn + gn.T)
-            k_q[np.ix_(r, t)] = k_q[np.ix_(t, r)].T  # the rotations' columns, differenced, give both
+            if self._all_translations:
+                gn = jac.T @ k_hh @ jac
+                k_q = 0.5 * (gn + gn.T)
+            else:
+                gn = jac[:, t].T @ k_hh @ jac[:, t]
+                k_q[np.ix_(t, t)] = 0.5 * (gn + gn.T)
+                k_q[np.ix_(r, t)] = k_q[np.ix_(t, r)].T  # the rotations' columns, differenced, give both
         if self._translation is not None:
             # K_qf times every free vertex moved along x, y, z: k_f's rows summed by axis
             k_q = invariant(k_q, k_f.reshape(-1, 3, k).sum(axis=0).T, self._translation)

@@ -17,8 +17,11 @@ import sys
 import threading
 import time
 
-#: Seconds of silence after which :func:`prepare` says that kernels are being compiled.
-NOTICE_AFTER = 1.0
+#: Seconds of silence after which :func:`prepare` says that kernels are being compiled. A
+#: warm-up from the cache takes 0.8-1.1 s on a 2-core VM (imports and loading the cached
+#: machine code), a first compile about a minute: at 1 s the notice also came, falsely, on
+#: cached runs of a loaded machine.
+NOTICE_AFTER = 3.0
 
 
 def warm_up() -> None:
