@@ -27,7 +27,8 @@ from .implicit import k_matvec_into, sm_solve_into
 Border = namedtuple("Border", ["h_fq", "h_qq", "j_q", "a0"])
 
 
-def no_border(n: int, k: int) -> Border:
+@nb.njit(cache=True)
+def no_border(n, k):
     """The empty border (m = 0) of a solve over n dofs and k rows."""
     return Border(np.zeros((n, 0)), np.zeros((0, 0)), np.zeros((k, 0)), np.zeros(0))
 
@@ -557,8 +558,7 @@ def solve_block(row, col, val, efc_rows, supported, efc_force, efc_aref, efc_r, 
             r_over_diag[i] = efc_r[efc[i]] / efc_diag_a[efc[i]]
         d = 1.0 / (r_over_diag * delassus_diagonal(lt, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, fptr, fcol,
                                                    fval))
-        border = Border(np.zeros((n, 0)), np.zeros((0, 0)), np.zeros((len(efc), 0)), np.zeros(0))
         a, _, lam, _ = newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a, col0, jw, fptr, fcol,
-                              fval, aref, d, border, max_iter, tol)
+                              fval, aref, d, no_border(n, len(efc)), max_iter, tol)
         force_out += transpose_apply_all(col0, jw, fptr, fcol, fval, lam, n)
     a_out[:] = a

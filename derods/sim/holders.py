@@ -101,6 +101,35 @@ def translation_mode(model: mujoco.MjModel, layout, dofs: np.ndarray, bodies) ->
     return mode
 
 
+def band_entries(pairs, band_rows: int) -> tuple[np.ndarray, ...]:
+    """Index arrays that gather 3 x 3 blocks of symmetric matrices kept as lower bands.
+
+    pairs: (band, place i, place j, block row, block column) per block: the block between
+    vertex places i and j of band ``band`` goes to rows 3 block row + (0..2) and columns
+    3 block column + (0..2) of the output; entries beyond the band are left out (zero).
+    Returns (band, band row, band column, output row, output column), int64, for
+    :func:`gather`."""
+    src, dst = [], []
+    for band, pi, pj, bi, bj in pairs:
+        for a in range(3):
+            for b in range(3):
+                i, j = 3 * pi + a, 3 * pj + b
+                if abs(i - j) < band_rows:
+                    src.append((band, abs(i - j), min(i, j)))
+                    dst.append((3 * bi + a, 3 * bj + b))
+    src, dst = np.array(src, dtype=np.int64).reshape(-1, 3), np.array(dst, dtype=np.int64).reshape(-1, 2)
+    return src[:, 0], src[:, 1], src[:, 2], dst[:, 0], dst[:, 1]
+
+
+def gather(bands: np.ndarray, entries: tuple[np.ndarray, ...], shape: tuple[int, int]) -> np.ndarray:
+    """The dense matrix of ``shape`` with the bands' (n_bands, rows, n) entries placed by
+    :func:`band_entries`' index arrays."""
+    band, d, j, row, col = entries
+    out = np.zeros(shape)
+    out[row, col] = bands[band, d, j]
+    return out
+
+
 def invariant(k_qq: np.ndarray, k_qf_sum: np.ndarray, mode: np.ndarray) -> np.ndarray:
     """k_qq (k, k) made symmetric and exact on the translation mode (k, 3): the nearest
     symmetric matrix K with K mode = -k_qf_sum (k, 3) (= -K_qf 1, what translation
@@ -157,51 +186,25 @@ class Holders:
         self._blocks = self._block_entries(layout, rods.v_off, band_rows)
         self._held_blocks = self._held_entries(band_rows)
         self._turns = None
-        self._all_translations = not self._eps_rot.any()
 
     def _block_entries(self, layout, v_off, band_rows: int) -> tuple[np.ndarray, ...]:
-        """Where K_fh's entries sit: (rod, band row, band column) of the compiled step's
-        bands and (row, column) in K_fh (n, 3H), for every free dof within the band of a
-        held vertex (static: the layout fixes them)."""
-        rows = band_rows // 3 + 1  # vertices either side within reach of the band
-        src, dst = [], []
-        for c, (h, rod) in enumerate(zip(self.held, self._rod_of_held)):
-            ph = self._place_all[h]
-            for v in range(max(v_off[rod], h - rows), min(v_off[rod + 1], h + rows + 1)):
-                p = layout.place[v]
-                if p < 0:
-                    continue
-                pv = self._place_all[v]
-                for r in range(3):
-                    for a in range(3):
-                        i, j = 3 * pv + r, 3 * ph + a
-                        if abs(i - j) < band_rows:
-                            src.append((rod, abs(i - j), min(i, j)))
-                            dst.append((3 * p + r, 3 * c + a))
-        src, dst = np.array(src, dtype=np.int64).reshape(-1, 3), np.array(dst, dtype=np.int64).reshape(-1, 2)
-        return src[:, 0], src[:, 1], src[:, 2], dst[:, 0], dst[:, 1]
+        """Where K_fh's entries sit in the compiled step's bands: every free dof within the
+        band of a held vertex (static: the layout fixes them; see :func:`band_entries`)."""
+        reach = band_rows // 3 + 1  # vertices either side within reach of the band
+        pairs = [(rod, self._place_all[v], self._place_all[h], layout.place[v], c)
+                 for c, (h, rod) in enumerate(zip(self.held, self._rod_of_held))
+                 for v in range(max(v_off[rod], h - reach), min(v_off[rod + 1], h + reach + 1)) if layout.place[v] >= 0]
+        return band_entries(pairs, band_rows)
 
     def _held_entries(self, band_rows: int) -> tuple[np.ndarray, ...]:
-        """Where K_hh's entries sit (as :meth:`_block_entries`): the band's blocks among the
-        held vertices of one rod, (rod, band row, band column) and (row, column) in K_hh."""
-        src, dst = [], []
-        for c1, (h1, r1) in enumerate(zip(self.held, self._rod_of_held)):
-            for c2, (h2, r2) in enumerate(zip(self.held, self._rod_of_held)):
-                for a in range(3):
-                    for b in range(3):
-                        i, j = 3 * self._place_all[h1] + a, 3 * self._place_all[h2] + b
-                        if r1 == r2 and abs(i - j) < band_rows:
-                            src.append((r1, abs(i - j), min(i, j)))
-                            dst.append((3 * c1 + a, 3 * c2 + b))
-        src, dst = np.array(src, dtype=np.int64).reshape(-1, 3), np.array(dst, dtype=np.int64).reshape(-1, 2)
-        return src[:, 0], src[:, 1], src[:, 2], dst[:, 0], dst[:, 1]
+        """Where K_hh's entries sit in the bands: the blocks among the held vertices of one rod."""
+        held = list(enumerate(zip(self.held, self._rod_of_held)))
+        pairs = [(r1, self._place_all[h1], self._place_all[h2], c1, c2)
+                 for c1, (h1, r1) in held for c2, (h2, r2) in held if r1 == r2]
+        return band_entries(pairs, band_rows)
 
     def __bool__(self) -> bool:
         return len(self.dofs) > 0
-
-    def rods_held(self) -> np.ndarray:
-        """The rods (indices) with a vertex held by one of these bodies."""
-        return np.unique(self._rod_of_held) if self else np.zeros(0, dtype=np.int64)
 
     # -- the matrices -----------------------------------------------------------------
     def stiffness_columns(self, step) -> tuple[np.ndarray, np.ndarray]:
@@ -260,16 +263,14 @@ class Holders:
         # rotations' by the differences above, made symmetric.
         t, r = ~self._eps_rot, self._eps_rot
         if t.any():
-            k_hh = np.zeros((3 * len(self.held), 3 * len(self.held)))
-            rod, dd, col, row, cc = self._held_blocks
-            k_hh[row, cc] = self._bands[rod, dd, col]
-            if self._all_translations:
-                gn = jac.T @ k_hh @ jac
-                k_q = 0.5 * (gn + gn.T)
-            else:
-                gn = jac[:, t].T @ k_hh @ jac[:, t]
-                k_q[np.ix_(t, t)] = 0.5 * (gn + gn.T)
+            k_hh = gather(self._bands, self._held_blocks, (3 * len(self.held), 3 * len(self.held)))
+            gn = jac[:, t].T @ k_hh @ jac[:, t]
+            gn = 0.5 * (gn + gn.T)
+            if r.any():
+                k_q[np.ix_(t, t)] = gn
                 k_q[np.ix_(r, t)] = k_q[np.ix_(t, r)].T  # the rotations' columns, differenced, give both
+            else:
+                k_q = gn
         if self._translation is not None:
             # K_qf times every free vertex moved along x, y, z: k_f's rows summed by axis
             k_q = invariant(k_q, k_f.reshape(-1, 3, k).sum(axis=0).T, self._translation)
@@ -282,9 +283,7 @@ class Holders:
         lay, t = step.layout, self._terms_all
         evaluate(step.rods, step.frames.copy(), step.x, self._place_all, t, step.ends, step.xmat, np.inf,
                  self._bands, self._band_of_rod)
-        out = np.zeros((lay.n, 3 * len(self.held)))
-        rod, d, j, row, col = self._blocks
-        out[row, col] = self._bands[rod, d, j]
+        out = gather(self._bands, self._blocks, (lay.n, 3 * len(self.held)))
         v_off = step.rods.v_off
         for c, (h, rod) in enumerate(zip(self.held, self._rod_of_held)):
             if rod in step.rod_tw:

@@ -226,7 +226,7 @@ class Implicit(Step):
         if self.holders:
             # Rods, holders, touching bodies and their contacts in one solve, and the strain
             # limit with the held vertices where their bodies take them (derods.sim.coupled).
-            a = self._coupled()
+            a = self.coupled(self)
         else:
             a = self._contact(d)
             if a is not None:
@@ -244,11 +244,6 @@ class Implicit(Step):
         self._integrated(self.a0 if a is None else a)
         self.n_steps += 1
         self.check()
-
-    def _coupled(self) -> np.ndarray:
-        """The step's acceleration of the rod dofs from the coupled solve of rods, holders,
-        touching bodies and their contacts (:mod:`derods.sim.coupled`)."""
-        return self.coupled(self)
 
     def _contact(self, d: mujoco.MjData) -> np.ndarray | None:
         """The step's acceleration with contacts re-solved in its metric (None: no
@@ -269,20 +264,18 @@ class Implicit(Step):
         return inv_mass
 
     def _limit_strain(self, a: np.ndarray, inv_mass: np.ndarray | None = None,
-                      held_x: np.ndarray | None = None, limited: np.ndarray | None = None) -> int:
+                      held_x: np.ndarray | None = None) -> int:
         """Project the rods that ``a`` (local accelerations, changed in place) would strain
         beyond the strain limit back onto their rest lengths, moving vertices by
         ``inv_mass`` (n_vertices,) (default: their own), the held ones predicted at
-        ``held_x`` (n_vertices, 3) [m] (default: where they are), among the rods
-        ``limited`` (n_rods,) (default: every open rod of the default stretch stiffness);
-        returns how many were (a rod that cannot be, held taut between pins, keeps its step)."""
-        limited = self.limited if limited is None else limited
-        if not limited.any() or math.isinf(self.strain_limit):
+        ``held_x`` (n_vertices, 3) [m] (default: where they are); returns how many were (a
+        rod that cannot be, held taut between pins, keeps its step)."""
+        if not self.limited.any() or math.isinf(self.strain_limit):
             return 0
         inv_mass = self.inv_mass if inv_mass is None else inv_mass
         try:
             n, _ = limit_strain(self.x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, inv_mass,
-                                self.layout.place, self.v, a, self.h, limited, self.strain_limit,
+                                self.layout.place, self.v, a, self.h, self.limited, self.strain_limit,
                                 PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp, self.x if held_x is None else held_x)
         except ValueError as err:  # the projection's banded Cholesky, in a state gone wild
             self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)
