@@ -2,8 +2,8 @@
 
 A row that touches only neighbouring vertices of one rod fits a window of a few
 dofs (a "banded" row: first dof ``col0`` and entries ``jw``); other rows touch
-distant dofs ("far" rows, dense over the local dofs). See
-:mod:`derods.sim.contact` for the problem these rows enter.
+distant dofs ("far" rows, dense over the local dofs, or as CSR: ``fptr``, ``fcol``,
+``fval``). See :mod:`derods.sim.contact` for the problem these rows enter.
 """
 
 from __future__ import annotations
@@ -144,7 +144,7 @@ def split_rows(row, col, val, local_of_dof, supported, force, n, width):
 @nb.njit(cache=True)
 def split_bordered_rows(row, col, val, local_of_dof, border_of_dof, supported, force, n, m, width):
     """:func:`split_rows` over n local dofs bordered by m more (border_of_dof (nv,): each
-    MuJoCo dof's place among them, -1 elsewhere; see :class:`derods._numba.contact.Border`).
+    MuJoCo dof's place among them, -1 elsewhere; see :class:`derods._numba.contact_newton.Border`).
 
     A row is derods' if it touches only local and border dofs (at least one) and is
     supported; a row that touches border dofs only is banded with an empty window.
@@ -307,3 +307,67 @@ def correct_aref(ncon, con_geom, con_pos, con_frame, con_dim, con_friction, con_
                     efc_aref[r] = -efc_kbip[r, 1] * vel - efc_kbip[r, 0] * efc_kbip[r, 2] * d
             else:
                 efc_aref[r] -= efc_kbip[r, 1] * w
+
+
+@nb.njit(cache=True)
+def far_rows_csr(jf):
+    """Far rows (k_f, n), dense, as CSR: (fptr (k_f + 1,), fcol, fval)."""
+    k, n = jf.shape
+    fptr = np.zeros(k + 1, dtype=np.int64)
+    for r in range(k):
+        c = 0
+        for j in range(n):
+            if jf[r, j] != 0.0:
+                c += 1
+        fptr[r + 1] = fptr[r] + c
+    fcol = np.empty(fptr[k], dtype=np.int64)
+    fval = np.empty(fptr[k])
+    q = 0
+    for r in range(k):
+        for j in range(n):
+            if jf[r, j] != 0.0:
+                fcol[q] = j
+                fval[q] = jf[r, j]
+                q += 1
+    return fptr, fcol, fval
+
+
+@nb.njit(cache=True)
+def apply_all(col0, jw, fptr, fcol, fval, a):
+    """J a over the banded rows (first) and the far rows, shape (k_b + k_f,)."""
+    kb = len(col0)
+    kf = len(fptr) - 1
+    out = np.empty(kb + kf)
+    out[:kb] = rows_apply(col0, jw, a)
+    for r in range(kf):
+        acc = 0.0
+        for q in range(fptr[r], fptr[r + 1]):
+            acc += fval[q] * a[fcol[q]]
+        out[kb + r] = acc
+    return out
+
+
+@nb.njit(cache=True)
+def transpose_apply_all(col0, jw, fptr, fcol, fval, lam, n):
+    """J^T lam over the banded and the far rows, shape (n,)."""
+    kb = len(col0)
+    out = rows_transpose_apply(col0, jw, lam[:kb], n)
+    for r in range(len(fptr) - 1):
+        lr = lam[kb + r]
+        if lr != 0.0:
+            for q in range(fptr[r], fptr[r + 1]):
+                out[fcol[q]] += fval[q] * lr
+    return out
+
+
+@nb.njit(cache=True)
+def far_columns(fptr, fcol, fval, n):
+    """The far rows' transposes side by side, (n, k_f), and their first nonzero dof."""
+    kf = len(fptr) - 1
+    cols = np.zeros((n, kf))
+    first = n
+    for r in range(kf):
+        for q in range(fptr[r], fptr[r + 1]):
+            cols[fcol[q], r] = fval[q]
+            first = min(first, fcol[q])
+    return cols, first

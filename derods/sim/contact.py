@@ -44,6 +44,8 @@ import mujoco
 import numpy as np
 
 from .._numba import contact as _k
+from .._numba import contact_newton as _newton
+from .._numba import contact_rows as _rows
 from .._numba.contact_rows import correct_aref, rows_band
 from ..stencil import XX_BANDWIDTH
 from .._numba.banded import cholesky_into
@@ -99,16 +101,16 @@ class Rows:
 
     def far_csr(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The far rows as CSR (row pointers, columns, values), for n local dofs."""
-        return _k.far_rows_csr(self.jf if self.jf.shape[0] else np.zeros((0, n)))
+        return _rows.far_rows_csr(self.jf if self.jf.shape[0] else np.zeros((0, n)))
 
     def apply(self, a: np.ndarray) -> np.ndarray:
         """J a for every row, shape (k,)."""
         a = np.ascontiguousarray(a, dtype=float)
-        return _k.apply_all(self.col0, self.jw, *self.far_csr(len(a)), a)
+        return _rows.apply_all(self.col0, self.jw, *self.far_csr(len(a)), a)
 
     def transpose_apply(self, lam: np.ndarray, n: int) -> np.ndarray:
         """J^T lam, shape (n,)."""
-        return _k.transpose_apply_all(self.col0, self.jw, *self.far_csr(n), np.ascontiguousarray(lam, dtype=float),
+        return _rows.transpose_apply_all(self.col0, self.jw, *self.far_csr(n), np.ascontiguousarray(lam, dtype=float),
                                       n)
 
     def band(self, weights: np.ndarray, n: int) -> np.ndarray:
@@ -166,10 +168,10 @@ def solve(system: ImplicitSystem, a0: np.ndarray, rows: Rows, max_iter: int = MA
     The objective is convex and piecewise quadratic; each Newton step is
     followed by an exact line search along its direction.
     """
-    a, _, lam, it = _k.newton(system.k_band, system.a_band, system.g, system.tw_lo, system.tw_hi, system.tw_c,
+    a, _, lam, it = _newton.newton(system.k_band, system.a_band, system.g, system.tw_lo, system.tw_hi, system.tw_c,
                               system.s, system.mass, system.m_coef, np.ascontiguousarray(a0, dtype=float), rows.col0,
                               rows.jw, *rows.far_csr(system.n), np.ascontiguousarray(rows.aref, dtype=float),
-                              np.ascontiguousarray(rows.d, dtype=float), _k.no_border(system.n, len(rows)), max_iter,
+                              np.ascontiguousarray(rows.d, dtype=float), _newton.no_border(system.n, len(rows)), max_iter,
                               tol)
     return a, lam, it
 

@@ -21,7 +21,7 @@ H is the coupled step's matrix of :mod:`derods.sim.holders`,
 A banded over a_f and the holders a dense border of m dofs; a* its unconstrained
 solution; the rows every supported row that touches only these dofs (a held edge on the
 floor, the holder's own contacts, the rope on the cylinder). Newton's method on it
-(:func:`derods._numba.contact.newton` with a :class:`derods._numba.contact.Border`)
+(:func:`derods._numba.contact_newton.newton` with a :class:`derods._numba.contact_newton.Border`)
 solves with the band's Cholesky factor and the border's Schur complement; row weights
 keep MuJoCo's impedance in this metric (D = 1 / (R / diagA * diag(J H^-1 J^T))). The
 holders' trees get the acceleration found, written as the force that makes MuJoCo's
@@ -40,7 +40,8 @@ import mujoco
 import numpy as np
 
 from .._numba import contact as _k
-from .._numba.contact_rows import efc_triplets, split_bordered_rows
+from .._numba.contact_newton import Border, newton
+from .._numba.contact_rows import apply_all, efc_triplets, far_rows_csr, split_bordered_rows, transpose_apply_all
 from .._numba.implicit import sm_solve_into
 from .contact import MAX_ITER, SUPPORTED, TOL, WINDOW, ContactStep, WithTrees
 from .holders import Holders
@@ -131,7 +132,7 @@ class CoupledStep:
         a[:n] = y0 - y @ aq[c]
         self.contact.force[:] = 0.0
         if len(efc):
-            fptr, fcol, fval = _k.far_rows_csr(jf)
+            fptr, fcol, fval = far_rows_csr(jf)
             h_fq = np.zeros((nn, mq))
             h_fq[:n, c] = s * k_f
             big_y = np.zeros((nn, mq))
@@ -139,18 +140,18 @@ class CoupledStep:
             diag = _k.delassus_diagonal(ext_sys.lt, ext_sys.g, sysm.tw_lo, sysm.tw_hi, sysm.tw_c, s, ext_sys.z,
                                         sysm.den, col0, jw, fptr, fcol, fval)
             # the border's part of diag(J H^-1 J^T): u S^-1 u^T, u = J_q - J_f A^-1 H_fq
-            u = jq - np.column_stack([_k.apply_all(col0, jw, fptr, fcol, fval, np.ascontiguousarray(big_y[:, j]))
+            u = jq - np.column_stack([apply_all(col0, jw, fptr, fcol, fval, np.ascontiguousarray(big_y[:, j]))
                                       for j in range(mq)]) if mq else jq
             diag += np.einsum("ij,ij->i", u, np.linalg.solve(schur, u.T).T)
             # a row that nothing here can move (J H^-1 J^T = 0: a held edge touching its own
             # holder, both parts on one rigid body) takes no force
             scaled = d.efc_R[efc] / d.efc_diagA[efc] * diag
             weights = np.divide(1.0, scaled, out=np.zeros_like(scaled), where=scaled > 0)
-            border = _k.Border(h_fq, np.ascontiguousarray(h_qq), np.ascontiguousarray(jq), aq)
-            a, aq, lam, _ = _k.newton(ext_sys.k_band, ext_sys.a_band, ext_sys.g, sysm.tw_lo, sysm.tw_hi, sysm.tw_c,
+            border = Border(h_fq, np.ascontiguousarray(h_qq), np.ascontiguousarray(jq), aq)
+            a, aq, lam, _ = newton(ext_sys.k_band, ext_sys.a_band, ext_sys.g, sysm.tw_lo, sysm.tw_hi, sysm.tw_c,
                                       s, ext_sys.mass, sysm.m_coef, a, col0, jw, fptr, fcol, fval,
                                       np.ascontiguousarray(d.efc_aref[efc]), weights, border, MAX_ITER, TOL)
-            f = ext + _k.transpose_apply_all(col0, jw, fptr, fcol, fval, lam, nn)
+            f = ext + transpose_apply_all(col0, jw, fptr, fcol, fval, lam, nn)
             self.contact.force[:] = f[:n]
         elif np.any(ext):
             self.contact.force[:] = ext[:n]

@@ -1,0 +1,348 @@
+"""The contact problem's Newton solve, compiled: minimize MuJoCo's primal objective in the
+implicit step's metric, the band's rows by its Cholesky factor, far rows (self-contact,
+rod-rod) by Woodbury's identity, and dofs that border the band (bodies holding rods,
+:mod:`derods.sim.coupled`) by their Schur complement. The stage around it (rows from
+MuJoCo, weights, blocks of rods) is :mod:`derods._numba.contact`; the rows' products are
+:mod:`derods._numba.contact_rows`.
+"""
+
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numba as nb
+import numpy as np
+
+from .banded import cholesky_into, solve_columns, solve_into
+from .contact_rows import apply_all, exact_line_search, far_columns, rows_band, transpose_apply_all
+from .implicit import k_matvec_into
+
+#: m dofs that border the band of a contact solve (bodies holding rods, solved with them):
+#: h_fq (n, m) and h_qq (m, m) the coupled step matrix's border and corner, j_q (k, m) the
+#: rows' entries on them, a0 (m,) their unconstrained acceleration.
+Border = namedtuple("Border", ["h_fq", "h_qq", "j_q", "a0"])
+
+
+@nb.njit(cache=True)
+def no_border(n, k):
+    """The empty border (m = 0) of a solve over n dofs and k rows."""
+    return Border(np.zeros((n, 0)), np.zeros((0, 0)), np.zeros((k, 0)), np.zeros(0))
+
+
+@nb.njit(cache=True)
+def _twist_update(g, tw_lo, tw_hi, tw_c, s, ztw, cols):
+    """Sherman-Morrison for each twist term in turn, on every column of cols (n, m):
+    x -= z_i (s c_i g_i.x) / (1 + s c_i g_i.z_i), z_i = ztw[:, i] (B^-1 g_i)."""
+    n = cols.shape[0]
+    for i in range(len(tw_lo)):
+        lo, hi = tw_lo[i], tw_hi[i]
+        gz = 0.0
+        for j in range(lo, hi):
+            gz += g[j] * ztw[j, i]
+        sc = s * tw_c[i]
+        for c in range(cols.shape[1]):
+            gx = 0.0
+            for j in range(lo, hi):
+                gx += g[j] * cols[j, c]
+            f = sc * gx / (1.0 + sc * gz)
+            for j in range(n):
+                cols[j, c] -= ztw[j, i] * f
+
+
+@nb.njit(cache=True)
+def newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a0, col0, jw, fptr, fcol, fval, aref, d,
+           border, max_iter, tol):
+    """Minimize 1/2 (a - a0)^T H (a - a0) + sum_i 1/2 d_i min(J_i a - aref_i, 0)^2 by
+    Newton's method with an exact line search. Returns (a, a_q, lam, iterations).
+
+    H is A (band, twist terms) over the n local dofs, bordered by m dofs q
+    (:class:`Border`: H_fq, H_qq, the rows' q entries and a_q's start; m = 0 for none):
+    every row is J_i = [J_f,i, J_q,i]. Each Newton step solves with B = A's band plus the
+    active banded rows, factored (and the far rows solved against it) only when the
+    banded rows' active set changes; the active far rows enter as a Woodbury update of a
+    small dense system, and the border by its Schur complement on B (m more solves)."""
+    n = len(a0)
+    kb = len(col0)
+    kf = len(fptr) - 1
+    k = kb + kf
+    n_tw = len(tw_lo)
+    hfq, hqq, jq = border.h_fq, border.h_qq, border.j_q
+    m = hqq.shape[0]
+    a = a0.copy()
+    aq = border.a0.copy()
+    am = np.zeros(n)  # H (a - a0), updated along the steps instead of recomputed
+    amq = np.zeros(m)
+    jar = apply_all(col0, jw, fptr, fcol, fval, a)
+    if m:
+        _add_border_apply(jq, aq, jar)
+    for i in range(k):
+        jar[i] -= aref[i]
+    m1 = 0.0
+    for j in range(n):
+        m1 = max(m1, abs(mass[j] * a0[j]))
+    for j in range(m):
+        m1 = max(m1, abs(hqq[j, j] * aq[j]))
+    m2 = 0.0
+    for i in range(k):
+        m2 = max(m2, abs(d[i] * aref[i]))
+    scale = m1 + m2 + 1e-300
+    w = np.empty(k)
+    wjar = np.empty(k)
+    w_factored = np.full(kb, -1.0)  # the banded weights B was last factored with
+    ab = np.empty_like(a_band)
+    lt = np.empty((n, a_band.shape[0]))
+    ztw = np.zeros((n, n_tw))
+    zf = np.zeros((n, kf))
+    zf_ready = False
+    far_cols, far_first = far_columns(fptr, fcol, fval, n)
+    kd = np.empty(n)
+    ad = np.empty(n)
+    adq = np.empty(m)
+    delta = np.empty(n)
+    dq = np.zeros(m)
+    y = np.empty((n, 1))
+    small = np.zeros((0, 0))
+    act = np.zeros(0, dtype=np.int64)
+    it = 0
+    for it in range(1, max_iter + 1):
+        for i in range(k):
+            w[i] = d[i] if jar[i] < 0 else 0.0
+            wjar[i] = w[i] * jar[i]
+        grad = transpose_apply_all(col0, jw, fptr, fcol, fval, wjar, n)
+        gmax = 0.0
+        for j in range(n):
+            grad[j] += am[j]
+            gmax = max(gmax, abs(grad[j]))
+        gq = np.zeros(m)
+        for j in range(m):
+            acc = amq[j]
+            for i in range(k):
+                acc += jq[i, j] * wjar[i]
+            gq[j] = acc
+            gmax = max(gmax, abs(acc))
+        if gmax <= tol * scale:
+            break
+        same = it > 1  # B is factored in the first iteration, then when its rows change
+        for i in range(kb):
+            if w[i] != w_factored[i]:
+                same = False
+                break
+        if not same:
+            extra = rows_band(col0, jw, w[:kb], n)
+            ab[:] = a_band
+            for dd in range(extra.shape[0]):
+                for j in range(n):
+                    ab[dd, j] += extra[dd, j]
+            cholesky_into(ab, lt)
+            ztw[:] = 0.0
+            for i in range(n_tw):
+                for j in range(tw_lo[i], tw_hi[i]):
+                    ztw[j, i] = g[j]
+            if n_tw:
+                solve_columns(lt, ztw, 0, n, 0)
+            w_factored[:] = w[:kb]
+            zf_ready = False
+        # The Newton direction: -(B + twist)^-1 grad, then the far rows by Woodbury.
+        for j in range(n):
+            y[j, 0] = grad[j]
+        solve_into(lt, y[:, 0], 0, n)
+        _twist_update(g, tw_lo, tw_hi, tw_c, s, ztw, y)
+        n_act = 0
+        for r in range(kf):
+            if w[kb + r] > 0:
+                n_act += 1
+        for j in range(n):
+            delta[j] = -y[j, 0]
+        if n_act:
+            if not zf_ready:
+                zf[:] = far_cols
+                solve_columns(lt, zf, 0, n, far_first)
+                _twist_update(g, tw_lo, tw_hi, tw_c, s, ztw, zf)
+                zf_ready = True
+            act = np.empty(n_act, dtype=np.int64)
+            q = 0
+            for r in range(kf):
+                if w[kb + r] > 0:
+                    act[q] = r
+                    q += 1
+            small = np.zeros((n_act, n_act))
+            corr = np.zeros(n_act)
+            for p in range(n_act):
+                r = act[p]
+                small[p, p] = 1.0 / w[kb + r]
+                for qq in range(fptr[r], fptr[r + 1]):
+                    col, val = fcol[qq], fval[qq]
+                    corr[p] += val * y[col, 0]
+                    for c in range(n_act):
+                        small[p, c] += val * zf[col, act[c]]
+            _spd_factor(small)
+            _spd_solve_factored(small, corr)
+            for c in range(n_act):
+                zc = act[c]
+                for j in range(n):
+                    delta[j] += zf[j, zc] * corr[c]
+        if m:
+            # The border by its Schur complement: C = H_fq + J_f^T W J_q, E = H_qq + J_q^T W J_q,
+            # Z = (B + far)^-1 C, S = E - C^T Z; S dq = -g_q - C^T delta, delta -= Z dq.
+            cw, ew = _border_blocks(col0, jw, fptr, fcol, fval, hfq, hqq, jq, w, n)
+            zc_ = cw.copy()
+            solve_columns(lt, zc_, 0, n, 0)
+            _twist_update(g, tw_lo, tw_hi, tw_c, s, ztw, zc_)
+            if n_act:
+                _woodbury_columns(zf, act, small, fptr, fcol, fval, zc_)
+            for p in range(m):
+                acc = -gq[p]
+                for j in range(n):
+                    acc -= cw[j, p] * delta[j]
+                dq[p] = acc
+                for c in range(m):
+                    acc2 = 0.0
+                    for j in range(n):
+                        acc2 += cw[j, p] * zc_[j, c]
+                    ew[p, c] -= acc2
+            _spd_factor(ew)
+            _spd_solve_factored(ew, dq)
+            for j in range(n):
+                acc = 0.0
+                for c in range(m):
+                    acc += zc_[j, c] * dq[c]
+                delta[j] -= acc
+        jd = apply_all(col0, jw, fptr, fcol, fval, delta)
+        k_matvec_into(k_band, g, tw_lo, tw_hi, tw_c, delta, kd)
+        d_a, d_g = 0.0, 0.0
+        for j in range(n):
+            ad[j] = s * kd[j] + mass[j] * m_coef * delta[j]
+        if m:
+            _add_border_apply(jq, dq, jd)
+            for j in range(n):
+                for c in range(m):
+                    ad[j] += hfq[j, c] * dq[c]
+            for p in range(m):
+                acc = 0.0
+                for c in range(m):
+                    acc += hqq[p, c] * dq[c]
+                for j in range(n):
+                    acc += hfq[j, p] * delta[j]
+                adq[p] = acc
+                d_a += dq[p] * acc
+                d_g += dq[p] * amq[p]
+        for j in range(n):
+            d_a += delta[j] * ad[j]
+            d_g += delta[j] * am[j]
+        t = exact_line_search(jar, jd, d, d_a, d_g)
+        smax = 0.0
+        amax = 0.0
+        for j in range(n):
+            a[j] += t * delta[j]
+            am[j] += t * ad[j]
+            smax = max(smax, abs(t * delta[j]))
+            amax = max(amax, abs(a[j]))
+        for j in range(m):
+            aq[j] += t * dq[j]
+            amq[j] += t * adq[j]
+            smax = max(smax, abs(t * dq[j]))
+            amax = max(amax, abs(aq[j]))
+        for i in range(k):
+            jar[i] += t * jd[i]
+        if smax <= tol * (amax + 1e-300):
+            break
+    jar = apply_all(col0, jw, fptr, fcol, fval, a)
+    if m:
+        _add_border_apply(jq, aq, jar)
+    lam = np.zeros(k)
+    for i in range(k):
+        r = jar[i] - aref[i]
+        if r < 0:
+            lam[i] = -d[i] * r
+    return a, aq, lam, it
+
+
+@nb.njit(cache=True)
+def _add_border_apply(jq, aq, out):
+    """out += J_q a_q: the rows' border entries jq (k, m) times a_q (m,)."""
+    for i in range(jq.shape[0]):
+        acc = 0.0
+        for c in range(jq.shape[1]):
+            acc += jq[i, c] * aq[c]
+        out[i] += acc
+
+
+@nb.njit(cache=True)
+def _border_blocks(col0, jw, fptr, fcol, fval, hfq, hqq, jq, w, n):
+    """C = H_fq + J_f^T W J_q (n, m) and E = H_qq + J_q^T W J_q (m, m) for row weights w."""
+    kb = len(col0)
+    m = hqq.shape[0]
+    cw = hfq.copy()
+    ew = hqq.copy()
+    width = jw.shape[1]
+    for i in range(len(w)):
+        wi = w[i]
+        if wi == 0.0:
+            continue
+        for c in range(m):
+            wq = wi * jq[i, c]
+            if wq == 0.0:
+                continue
+            for c2 in range(m):
+                ew[c2, c] += jq[i, c2] * wq
+            if i < kb:
+                c0 = col0[i]
+                for p in range(min(width, n - c0)):
+                    cw[c0 + p, c] += jw[i, p] * wq
+            else:
+                r = i - kb
+                for qq in range(fptr[r], fptr[r + 1]):
+                    cw[fcol[qq], c] += fval[qq] * wq
+    return cw, ew
+
+
+@nb.njit(cache=True)
+def _woodbury_columns(zf, act, small_factor, fptr, fcol, fval, cols):
+    """cols <- cols - Z_f S^-1 U^T cols for the active far rows act (Woodbury's correction,
+    with S = W^-1 + U^T Z_f already factored by :func:`_spd_factor`)."""
+    n_act = len(act)
+    for c in range(cols.shape[1]):
+        corr = np.zeros(n_act)
+        for p in range(n_act):
+            r = act[p]
+            for qq in range(fptr[r], fptr[r + 1]):
+                corr[p] += fval[qq] * cols[fcol[qq], c]
+        _spd_solve_factored(small_factor, corr)
+        for p in range(n_act):
+            zc = act[p]
+            for j in range(cols.shape[0]):
+                cols[j, c] -= zf[j, zc] * corr[p]
+
+
+@nb.njit(cache=True)
+def _spd_factor(a):
+    """Cholesky factor of a small symmetric positive definite a, in place (lower part):
+    the Woodbury system of the active far rows, the border's Schur complement."""
+    m = a.shape[0]
+    for j in range(m):
+        acc = a[j, j]
+        for q in range(j):
+            acc -= a[j, q] * a[j, q]
+        ljj = np.sqrt(acc)
+        a[j, j] = ljj
+        for i in range(j + 1, m):
+            acc = a[i, j]
+            for q in range(j):
+                acc -= a[i, q] * a[j, q]
+            a[i, j] = acc / ljj
+
+
+@nb.njit(cache=True)
+def _spd_solve_factored(a, b):
+    """Solve L L^T x = b in place on b, L the factor :func:`_spd_factor` left in a."""
+    m = a.shape[0]
+    for i in range(m):
+        acc = b[i]
+        for q in range(i):
+            acc -= a[i, q] * b[q]
+        b[i] = acc / a[i, i]
+    for i in range(m - 1, -1, -1):
+        acc = b[i]
+        for q in range(i + 1, m):
+            acc -= a[q, i] * b[q]
+        b[i] = acc / a[i, i]
