@@ -47,6 +47,8 @@ with dofs (hair rides a mocap head).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import mujoco
 import numpy as np
 
@@ -54,6 +56,16 @@ from .._numba.coupling import gather_positions
 from ..stencil import ring_order
 from ..step import Terms, evaluate
 from .trees import TreeDynamics, tree_dofs, trees_of
+
+class Stiffness(NamedTuple):
+    """The rods' stiffness as the holders' dofs (k of them) and held points (H) see it."""
+
+    k_f: np.ndarray   #: (n, k) [N/m or N/rad]: d grad_f / dq over the rods' free dofs
+    k_q: np.ndarray   #: (k, k): d^2 E / dq^2
+    k_fh: np.ndarray  #: (n, 3H) [N/m]: Gauss-Newton blocks between free dofs and held points
+    k_hh: np.ndarray  #: (3H, 3H) [N/m]: the same among the held points
+    jac: np.ndarray   #: (3H, k): the held points' motion per holder dof (mj_jac)
+
 
 #: The central-difference step for K's columns [relative to the shortest edge for a
 #: translation, in rad for a rotation]: the gradient is smooth; round-off stays below
@@ -166,6 +178,8 @@ class Holders:
         self._qfrc = np.zeros(model.nv)
         self._dq = np.zeros(model.nv)
         edge = float(np.min(rods.rest_len))
+        #: The rods' shortest rest edge length [m].
+        self.shortest_edge = edge
         self._eps_rot = np.array([rotational(model, int(j)) for j in self.dofs])
         self._eps = np.where(self._eps_rot, FD_STEP, FD_STEP * edge)
         self._band_of_rod = np.arange(rods.n_rods, dtype=np.int64)
@@ -207,9 +221,10 @@ class Holders:
         return len(self.dofs) > 0
 
     # -- the matrices -----------------------------------------------------------------
-    def stiffness_columns(self, step) -> tuple[np.ndarray, np.ndarray]:
-        """K's columns over the holder dofs at the step's state: k_f (n, k) = d grad_f / dq
-        [N/m or N/rad] over the rods' free dofs, k_q (k, k) = d^2 E / dq^2.
+    def stiffness_columns(self, step) -> Stiffness:
+        """K's columns over the holder dofs at the step's state (a :class:`Stiffness`):
+        k_f (n, k) = d grad_f / dq [N/m or N/rad] over the rods' free dofs, k_q (k, k) =
+        d^2 E / dq^2, and the pieces k_f is made of.
 
         k_f = K_fh J + F: K_fh the Gauss-Newton blocks between free and held vertices (the
         compiled step's, the same the band holds, so that a rigid translation of rod and
@@ -257,13 +272,14 @@ class Holders:
         for c, v in enumerate(self.held):  # the held points' motion per dof, exact
             mujoco.mj_jac(m, d, self._jacp, self._jacr, x[v], int(step.layout.body[v]))
             jac[3 * c:3 * c + 3] = self._jacp[:, self.dofs]
-        k_f = self.held_blocks(step) @ jac + frame
+        k_fh = self.held_blocks(step)
+        k_f = k_fh @ jac + frame
         # Translations: K_qq's rows and columns J^T K_hh J, the band's own Gauss-Newton blocks
         # (moving a body along a line moves its held points rigidly, no lever turns); the
         # rotations' by the differences above, made symmetric.
         t, r = ~self._eps_rot, self._eps_rot
+        k_hh = gather(self._bands, self._held_blocks, (3 * len(self.held), 3 * len(self.held)))
         if t.any():
-            k_hh = gather(self._bands, self._held_blocks, (3 * len(self.held), 3 * len(self.held)))
             gn = jac[:, t].T @ k_hh @ jac[:, t]
             gn = 0.5 * (gn + gn.T)
             if r.any():
@@ -274,7 +290,7 @@ class Holders:
         if self._translation is not None:
             # K_qf times every free vertex moved along x, y, z: k_f's rows summed by axis
             k_q = invariant(k_q, k_f.reshape(-1, 3, k).sum(axis=0).T, self._translation)
-        return k_f, k_q
+        return Stiffness(k_f, k_q, k_fh, k_hh, jac)
 
     def held_blocks(self, step) -> np.ndarray:
         """K_fh (n, 3H) [N/m]: the Gauss-Newton Hessian blocks between the rods' free dofs and
