@@ -14,6 +14,7 @@ import numba as nb
 import numpy as np
 
 from .banded import cholesky_into, solve_columns, solve_into
+from .dense import spd_factor as _spd_factor, spd_solve_factored as _spd_solve_factored
 from .contact_rows import apply_all, exact_line_search, far_columns, rows_band, transpose_apply_all
 from .implicit import k_matvec_into
 
@@ -299,7 +300,7 @@ def _border_blocks(col0, jw, fptr, fcol, fval, hfq, hqq, jq, w, n):
 @nb.njit(cache=True)
 def _woodbury_columns(zf, act, small_factor, fptr, fcol, fval, cols):
     """cols <- cols - Z_f S^-1 U^T cols for the active far rows act (Woodbury's correction,
-    with S = W^-1 + U^T Z_f already factored by :func:`_spd_factor`)."""
+    with S = W^-1 + U^T Z_f already factored by :func:`derods._numba.dense.spd_factor`)."""
     n_act = len(act)
     for c in range(cols.shape[1]):
         corr = np.zeros(n_act)
@@ -312,37 +313,3 @@ def _woodbury_columns(zf, act, small_factor, fptr, fcol, fval, cols):
             zc = act[p]
             for j in range(cols.shape[0]):
                 cols[j, c] -= zf[j, zc] * corr[p]
-
-
-@nb.njit(cache=True)
-def _spd_factor(a):
-    """Cholesky factor of a small symmetric positive definite a, in place (lower part):
-    the Woodbury system of the active far rows, the border's Schur complement."""
-    m = a.shape[0]
-    for j in range(m):
-        acc = a[j, j]
-        for q in range(j):
-            acc -= a[j, q] * a[j, q]
-        ljj = np.sqrt(acc)
-        a[j, j] = ljj
-        for i in range(j + 1, m):
-            acc = a[i, j]
-            for q in range(j):
-                acc -= a[i, q] * a[j, q]
-            a[i, j] = acc / ljj
-
-
-@nb.njit(cache=True)
-def _spd_solve_factored(a, b):
-    """Solve L L^T x = b in place on b, L the factor :func:`_spd_factor` left in a."""
-    m = a.shape[0]
-    for i in range(m):
-        acc = b[i]
-        for q in range(i):
-            acc -= a[i, q] * b[q]
-        b[i] = acc / a[i, i]
-    for i in range(m - 1, -1, -1):
-        acc = b[i]
-        for q in range(i + 1, m):
-            acc -= a[q, i] * b[q]
-        b[i] = acc / a[i, i]

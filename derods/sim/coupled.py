@@ -42,6 +42,7 @@ import numpy as np
 from .._numba import contact as _k
 from .._numba.contact_newton import Border, newton
 from .._numba.contact_rows import apply_all, efc_triplets, far_rows_csr, split_bordered_rows, transpose_apply_all
+from .._numba.dense import inverse_quadratic_rows, lu_factor, lu_solve, spd_factor
 from .._numba.implicit import sm_solve_into
 from .contact import MAX_ITER, SUPPORTED, TOL, WINDOW, ContactStep, WithTrees
 from .holders import Holders, rotational
@@ -83,11 +84,14 @@ class CoupledStep:
         self._held_body = np.asarray(layout.body, dtype=np.int64)[holders.held]
         #: Whether the dofs that move held points are all of their trees' (a cart, a box, an arm).
         self._whole_tree = len(holders.dofs) == self.m
-        #: Geoms of the holders, whose contacts with a held edge are the edge's own.
-        self._holder_geom = np.isin(model.geom_bodyid, holders.bodies)
+        #: Geoms of the holders that collide, whose contacts with a held edge are the edge's own.
+        self._holder_geom = np.isin(model.geom_bodyid, holders.bodies) & (
+            (model.geom_contype != 0) | (model.geom_conaffinity != 0))
+        self._any_holder_geom = bool(self._holder_geom.any())
         #: The vertices riding on bodies with dofs, and their vertex bodies.
         riding = np.isin(model.body_rootid[layout.moved_body], model.body_rootid[holders.bodies])
         self._riding_vertex, self._riding_body = layout.moved_vertex[riding], layout.moved_body[riding]
+        self._held_are_riding = set(self._riding_vertex.tolist()) == set(holders.held.tolist())
         self._contact_types = np.array([int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS),
                                         int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL),
                                         int(mujoco.mjtConstraint.mjCNSTR_CONTACT_ELLIPTIC)])
@@ -140,6 +144,8 @@ class CoupledStep:
             h_qq += fix
         force = d.qfrc_smooth[hl.tree] + ext_q
         force[c] -= (b + h) * (k_f.T @ step.v + k_q @ v_q) + s * (k_f.T @ y0)
+        lu, piv = schur.copy(), np.zeros(mq, dtype=np.int64)  # S's factors, for every solve below
+        lu_factor(lu, piv)
         self.contact.force[:] = 0.0
         newton_args = None
         if len(efc):
@@ -153,7 +159,7 @@ class CoupledStep:
             # the border's part of diag(J H^-1 J^T): u S^-1 u^T, u = J_q - J_f A^-1 H_fq
             u = jq - np.column_stack([apply_all(col0, jw, fptr, fcol, fval, np.ascontiguousarray(big_y[:, j]))
                                       for j in range(mq)]) if mq else jq
-            diag += np.einsum("ij,ij->i", u, np.linalg.solve(schur, u.T).T)
+            diag += inverse_quadratic_rows(lu, piv, np.ascontiguousarray(u))
             # a row that nothing here can move (J H^-1 J^T = 0: a held edge touching its own
             # holder, both parts on one rigid body) takes no force
             scaled = d.efc_R[efc] / d.efc_diagA[efc] * diag
@@ -167,13 +173,14 @@ class CoupledStep:
             contact Newton."""
             f_q, a = force.copy(), start.copy()
             if arc is None:
-                aq = np.linalg.solve(schur, f_q)
-                a[:n] = y0 - y @ aq[c]
+                lu_solve(lu, piv, f_q)
+                a[:n] = y0 - y @ f_q[c]
             else:
                 y_arc = sysm.solve(stiff.k_fh @ arc)
                 f_q[c] -= stiff.jac.T @ (stiff.k_hh @ arc) - s * (k_f.T @ y_arc)
-                aq = np.linalg.solve(schur, f_q)
-                a[:n] = y0 - y_arc - y @ aq[c]
+                lu_solve(lu, piv, f_q)
+                a[:n] = y0 - y_arc - y @ f_q[c]
+            aq = f_q
             if newton_args is None:
                 return a, aq, ext
             h_fq, hqq, jq_, col0, jw, fptr, fcol, fval, aref, weights = newton_args
@@ -203,12 +210,12 @@ class CoupledStep:
         if newton_args is not None or np.any(ext):
             self.contact.force[:] = f[:n]
         af = a[:n]
-        self._limit_strain(step, af, aq)
+        self._limit_strain(step, af, aq, stiff.jac)
         hl._dynamics.write(d, hl.tree, metric, aq)
         ext_sys.write(d, a[n:])
         return af
 
-    def _limit_strain(self, step, af: np.ndarray, aq: np.ndarray) -> None:
+    def _limit_strain(self, step, af: np.ndarray, aq: np.ndarray, jac: np.ndarray) -> None:
         """The strain limit (:data:`derods.sim.integrators.STRAIN_LIMIT`) on the coupled
         solution af (n,) [m/s^2] (changed in place), the vertices held by bodies with dofs
         predicted exactly where MuJoCo's integrator takes them with aq (m,) and kept
@@ -216,9 +223,14 @@ class CoupledStep:
         world. (Predicted to first order, J (v_q + h a_q), a box spinning at 24 rad/s at
         dt 1e-2 put its held point 0.6 mm off its arc, the rod's first edge 4.6 % too
         long, and the box diverged; moving the held points by their holders' inertia
-        instead, without their contacts, did not help either.)"""
+        instead, without their contacts, did not help either.) jac (3H, k): the held
+        points' Jacobian: where no held point turns, they move by it exactly."""
+        hl, h = self.holders, step.h
         self.held_x[:] = step.x
-        if len(self._riding_vertex):
+        if not self._turning and self._held_are_riding:
+            v_q = step.data.qvel[hl.dofs] + h * aq[hl._in_tree]
+            self.held_x[hl.held] += (jac @ (h * v_q)).reshape(-1, 3)
+        elif len(self._riding_vertex):
             self._predict_held(step, aq)
         step.n_projected = step._limit_strain(af, step._touching(), self.held_x)
 
@@ -262,7 +274,7 @@ class CoupledStep:
     def _own_holder_rows(self, d: mujoco.MjData) -> np.ndarray | None:
         """Which constraint rows (nefc,) are contacts of a held edge with its own holder's
         geoms (None: none, or holder_contact is on)."""
-        if self.holder_contact or d.ncon == 0 or self._elem_holder is None:
+        if self.holder_contact or d.ncon == 0 or self._elem_holder is None or not self._any_holder_geom:
             return None
         m, con = self.model, d.contact
         geom = con.geom
@@ -297,11 +309,8 @@ def definite(schur: np.ndarray, metric: np.ndarray) -> np.ndarray | None:
     rods' stiffness as the holders feel it, a Schur complement of a PSD matrix, adds to
     their inertia), so the generalized eigenvalues of (S, M) below 1 are raised to 1."""
     sym = 0.5 * (schur + schur.T)
-    try:  # S - M >= 0 but for round-off (a rigid mode leaves it singular): nothing to do
-        np.linalg.cholesky(sym - (1.0 - 1e-9) * metric)
+    if spd_factor(sym - (1.0 - 1e-9) * metric):  # S - M >= 0 but for round-off (a rigid mode): nothing to do
         return None
-    except np.linalg.LinAlgError:
-        pass
     chol = np.linalg.cholesky(metric)
     t = np.linalg.solve(chol, np.linalg.solve(chol, sym).T)
     lam, vec = np.linalg.eigh(0.5 * (t + t.T))

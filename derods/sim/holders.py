@@ -200,6 +200,7 @@ class Holders:
         self._blocks = self._block_entries(layout, rods.v_off, band_rows)
         self._held_blocks = self._held_entries(band_rows)
         self._turns = None
+        self._twisted = None
 
     def _block_entries(self, layout, v_off, band_rows: int) -> tuple[np.ndarray, ...]:
         """Where K_fh's entries sit in the compiled step's bands: every free dof within the
@@ -300,12 +301,14 @@ class Holders:
         evaluate(step.rods, step.frames.copy(), step.x, self._place_all, t, step.ends, step.xmat, np.inf,
                  self._bands, self._band_of_rod)
         out = gather(self._bands, self._blocks, (lay.n, 3 * len(self.held)))
+        if self._twisted is None:  # which held vertices' rods are held at both ends (fixed at compile)
+            self._twisted = np.flatnonzero(np.isin(self._rod_of_held, step.rod_tw))
         v_off = step.rods.v_off
-        for c, (h, rod) in enumerate(zip(self.held, self._rod_of_held)):
-            if rod in step.rod_tw:
-                lo, hi = v_off[rod], v_off[rod + 1]
-                free = lay.place[lo:hi] >= 0
-                g_f = np.zeros(lay.n)
-                g_f.reshape(-1, 3)[lay.place[lo:hi][free]] = t.g_tw[lo:hi][free]
-                out[:, 3 * c:3 * c + 3] += step.terms.coef[rod] * np.outer(g_f, t.g_tw[h])
+        for c in self._twisted:
+            h, rod = self.held[c], self._rod_of_held[c]
+            lo, hi = v_off[rod], v_off[rod + 1]
+            free = lay.place[lo:hi] >= 0
+            g_f = np.zeros(lay.n)
+            g_f.reshape(-1, 3)[lay.place[lo:hi][free]] = t.g_tw[lo:hi][free]
+            out[:, 3 * c:3 * c + 3] += step.terms.coef[rod] * np.outer(g_f, t.g_tw[h])
         return out
