@@ -201,6 +201,9 @@ class Holders:
         self._held_blocks = self._held_entries(band_rows)
         self._turns = None
         self._twisted = None
+        #: Every holder dof a slide with slides above it: held points move along fixed axes.
+        self._slides_only = all(model.jnt_type[model.dof_jntid[j]] == mujoco.mjtJoint.mjJNT_SLIDE for j in self.dofs)
+        self._slide_jac = None
 
     def _block_entries(self, layout, v_off, band_rows: int) -> tuple[np.ndarray, ...]:
         """Where K_fh's entries sit in the compiled step's bands: every free dof within the
@@ -236,6 +239,8 @@ class Holders:
         data). Where rods and holders float freely (:func:`translation_mode`), k_q is made
         exact on the translations too (:func:`invariant`): linear momentum is kept.
         """
+        if self._slides_only:
+            return self._slide_stiffness(step)
         m, d, lay, fr = step.model, step.data, step.layout, step.frames
         ds, xs, x = self._scratch, self._xs, step.x
         k = len(self.dofs)
@@ -292,6 +297,23 @@ class Holders:
             # K_qf times every free vertex moved along x, y, z: k_f's rows summed by axis
             k_q = invariant(k_q, k_f.reshape(-1, 3, k).sum(axis=0).T, self._translation)
         return Stiffness(k_f, k_q, k_fh, k_hh, jac)
+
+    def _slide_stiffness(self, step) -> Stiffness:
+        """:meth:`stiffness_columns` where every holder dof is a slide (carts, gantries): the
+        held points move along the slides' axes, fixed in the world, so J is constant
+        (taken once) and there is nothing to difference: K_qq = J^T K_hh J."""
+        if self._slide_jac is None:
+            m, d, k = step.model, step.data, len(self.dofs)
+            self._slide_jac = np.zeros((3 * len(self.held), k))
+            for c, v in enumerate(self.held):
+                mujoco.mj_jac(m, d, self._jacp, self._jacr, step.x[v], int(step.layout.body[v]))
+                self._slide_jac[3 * c:3 * c + 3] = self._jacp[:, self.dofs]
+        jac = self._slide_jac
+        k_fh = self.held_blocks(step)
+        k_hh = gather(self._bands, self._held_blocks, (3 * len(self.held), 3 * len(self.held)))
+        k_f = k_fh @ jac
+        k_q = jac.T @ k_hh @ jac
+        return Stiffness(k_f, 0.5 * (k_q + k_q.T), k_fh, k_hh, jac)
 
     def held_blocks(self, step) -> np.ndarray:
         """K_fh (n, 3H) [N/m]: the Gauss-Newton Hessian blocks between the rods' free dofs and
