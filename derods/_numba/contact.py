@@ -18,7 +18,8 @@ import numpy as np
 from .banded import inverse_band, solve_columns
 from .contact_blocks import partition
 from .contact_newton import newton, no_border
-from .contact_rows import efc_triplets, far_columns, far_rows_csr, rows_apply, rows_diag, split_rows
+from .dense import inverse_quadratic_rows
+from .contact_rows import apply_all, efc_triplets, far_columns, far_rows_csr, rows_apply, rows_diag, split_rows
 from .contact_rows import transpose_apply_all
 from .implicit import sm_solve_into
 
@@ -61,6 +62,35 @@ def delassus_diagonal(lt, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, fptr, fcol
                 acc += fval[q] * cols[fcol[q], r]
             out[kb + r] = acc
     return out
+
+
+@nb.njit(cache=True)
+def bordered_weights(lt, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, fptr, fcol, fval, y_border, jq, lu, piv,
+                     ratio):
+    """The rows' weights in the metric of a system bordered by m dofs (bodies holding rods,
+    :mod:`derods.sim.coupled`): D_i = 1 / (ratio_i diag(J H^-1 J^T)_i), 0 where that is not
+    positive (a row nothing can move). diag(J H^-1 J^T) is the band's part
+    (:func:`delassus_diagonal`) plus the border's, u S^-1 u^T with u = J_q - J_f y_border;
+    y_border (n, m): A^-1 H_fq; jq (k, m): the rows' entries on the border; lu, piv: the
+    Schur complement S's factors (:func:`derods._numba.dense.lu_factor`); ratio (k,):
+    MuJoCo's R / diagA per row (its impedance)."""
+    diag = delassus_diagonal(lt, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, fptr, fcol, fval)
+    k, m = jq.shape
+    if m:
+        u = jq.copy()
+        col = np.empty(y_border.shape[0])
+        for j in range(m):
+            col[:] = y_border[:, j]
+            ju = apply_all(col0, jw, fptr, fcol, fval, col)
+            for i in range(k):
+                u[i, j] -= ju[i]
+        diag += inverse_quadratic_rows(lu, piv, u)
+    w = np.zeros(k)
+    for i in range(k):
+        scaled = ratio[i] * diag[i]
+        if scaled > 0.0:
+            w[i] = 1.0 / scaled
+    return w
 
 
 @nb.njit(cache=True)

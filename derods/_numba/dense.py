@@ -109,3 +109,20 @@ def inverse_quadratic_rows(a, piv, u):
             acc += u[i, j] * x[j]
         out[i] = acc
     return out
+
+
+@nb.njit(cache=True)
+def sparse_block_into(values, rowadr, rownnz, colind, dofs, out):
+    """out (k, k) <- the block on the sorted ``dofs`` (k,) of a symmetric matrix MuJoCo keeps
+    as its lower triangle in CSR (``data.M`` with ``model.M_rowadr``, ``M_rownnz``,
+    ``M_colind``: the mass matrix, whose off-diagonal entries join a dof to its ancestors)."""
+    k = len(dofs)
+    out[:] = 0.0
+    for p in range(k):
+        i = dofs[p]
+        for e in range(rowadr[i], rowadr[i] + rownnz[i]):
+            j = colind[e]
+            q = np.searchsorted(dofs, j)
+            if q < k and dofs[q] == j:
+                out[p, q] = values[e]
+                out[q, p] = values[e]

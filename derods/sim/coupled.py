@@ -41,8 +41,8 @@ import numpy as np
 
 from .._numba import contact as _k
 from .._numba.contact_newton import Border, newton
-from .._numba.contact_rows import apply_all, efc_triplets, far_rows_csr, split_bordered_rows, transpose_apply_all
-from .._numba.dense import inverse_quadratic_rows, lu_factor, lu_solve, spd_factor
+from .._numba.contact_rows import efc_triplets, far_rows_csr, split_bordered_rows, transpose_apply_all
+from .._numba.dense import lu_factor, lu_solve, spd_factor
 from .._numba.implicit import sm_solve_into
 from .contact import MAX_ITER, SUPPORTED, TOL, WINDOW, ContactStep, WithTrees
 from .holders import Holders, rotational
@@ -154,16 +154,10 @@ class CoupledStep:
             h_fq[:n, c] = s * k_f
             big_y = np.zeros((nn, mq))
             big_y[:n, c] = y
-            diag = _k.delassus_diagonal(ext_sys.lt, ext_sys.g, sysm.tw_lo, sysm.tw_hi, sysm.tw_c, s, ext_sys.z,
-                                        sysm.den, col0, jw, fptr, fcol, fval)
-            # the border's part of diag(J H^-1 J^T): u S^-1 u^T, u = J_q - J_f A^-1 H_fq
-            u = jq - np.column_stack([apply_all(col0, jw, fptr, fcol, fval, np.ascontiguousarray(big_y[:, j]))
-                                      for j in range(mq)]) if mq else jq
-            diag += inverse_quadratic_rows(lu, piv, np.ascontiguousarray(u))
-            # a row that nothing here can move (J H^-1 J^T = 0: a held edge touching its own
-            # holder, both parts on one rigid body) takes no force
-            scaled = d.efc_R[efc] / d.efc_diagA[efc] * diag
-            weights = np.divide(1.0, scaled, out=np.zeros_like(scaled), where=scaled > 0)
+            # MuJoCo's impedance kept in this metric (see the module docstring)
+            weights = _k.bordered_weights(ext_sys.lt, ext_sys.g, sysm.tw_lo, sysm.tw_hi, sysm.tw_c, s, ext_sys.z,
+                                          sysm.den, col0, jw, fptr, fcol, fval, big_y, np.ascontiguousarray(jq),
+                                          lu, piv, d.efc_R[efc] / d.efc_diagA[efc])
             newton_args = (h_fq, np.ascontiguousarray(h_qq), np.ascontiguousarray(jq), col0, jw, fptr, fcol, fval,
                            np.ascontiguousarray(d.efc_aref[efc]), weights)
 

@@ -20,6 +20,8 @@ import os
 import mujoco
 import numpy as np
 
+from .._numba.dense import sparse_block_into
+
 _MJD_SMOOTH_VEL = None
 
 
@@ -56,25 +58,19 @@ def tree_dofs(model: mujoco.MjModel, trees: np.ndarray) -> np.ndarray:
 
 
 class TreeDynamics:
-    """M and D of one model on a set of tree dofs (sorted, int64), and the write-back.
-    Scratch vectors are kept per model, so one instance serves any set of its dofs."""
+    """M and D of one model on a set of tree dofs (sorted, int64), and the write-back;
+    one instance serves any set of its dofs."""
 
     def __init__(self, model: mujoco.MjModel):
-        self._unit = np.zeros(model.nv)
-        self._column = np.zeros(model.nv)
         self.implicit = model.opt.integrator in (mujoco.mjtIntegrator.mjINT_IMPLICIT,
                                                  mujoco.mjtIntegrator.mjINT_IMPLICITFAST)
         self._bias = int(model.opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICIT)
 
     def mass(self, m: mujoco.MjModel, d: mujoco.MjData, dofs: np.ndarray) -> np.ndarray:
-        """MuJoCo's mass matrix M[dofs, dofs] [kg or kg m^2], a column per dof through
-        mj_mulM (a dense nv x nv matrix would not fit a large world)."""
+        """MuJoCo's mass matrix M[dofs, dofs] [kg or kg m^2] for sorted ``dofs``, read from its
+        sparse ``data.M`` (a dense nv x nv matrix would not fit a large world)."""
         out = np.empty((len(dofs), len(dofs)))
-        for j, dof in enumerate(dofs):
-            self._unit[dof] = 1.0
-            mujoco.mj_mulM(m, d, self._column, self._unit)
-            self._unit[dof] = 0.0
-            out[:, j] = self._column[dofs]
+        sparse_block_into(d.M, m.M_rowadr, m.M_rownnz, m.M_colind, np.ascontiguousarray(dofs, dtype=np.int64), out)
         return out
 
     def damping(self, m: mujoco.MjModel, d: mujoco.MjData, dofs: np.ndarray) -> np.ndarray:
