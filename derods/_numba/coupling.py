@@ -77,3 +77,18 @@ def holder_wrench(x, grad, t, held_vertex, held_slot, clamp_slot, clamp_edge, en
         s, e = clamp_slot[c], clamp_edge[c]
         for a in range(3):
             torque[s, a] -= end_moment[c] * t[e, a]
+
+
+@nb.njit(cache=True)
+def free_band_into(bands, first, dof_off, band):
+    """band (rows, n) <- the world's lower band over the free dofs, sliced from the rods'
+    all-vertex bands (n_rods, rows, 3 max_vertices): rod i's free vertices start at vertex
+    place first[i] of its own band and at dof dof_off[i] of the world's (the same order);
+    entries reaching past a rod's free dofs (to held vertices, or to the next rod) are 0."""
+    band[:] = 0.0
+    rows = band.shape[0]
+    for i in range(len(first)):
+        c0, nf, a = dof_off[i], dof_off[i + 1] - dof_off[i], 3 * first[i]
+        for d in range(rows):
+            for j in range(nf - d):
+                band[d, c0 + j] = bands[i, d, a + j]

@@ -52,7 +52,7 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
-from .._numba.coupling import gather_positions
+from .._numba.coupling import free_band_into, gather_positions
 from ..stencil import ring_order
 from ..step import Terms, evaluate
 from .trees import TreeDynamics, tree_dofs, trees_of
@@ -204,6 +204,37 @@ class Holders:
         #: Every holder dof a slide with slides above it: held points move along fixed axes.
         self._slides_only = all(model.jnt_type[model.dof_jntid[j]] == mujoco.mjtJoint.mjJNT_SLIDE for j in self.dofs)
         self._slide_jac = None
+        self._share_band(layout, rods)
+
+    def _share_band(self, layout, rods) -> None:
+        """Whether the world's step can evaluate the rods once for both bands: each rod's
+        free vertices keep their solve order in its all-vertex band, so the world's band is
+        a slice of it (:meth:`evaluate`); then ``_free_first`` (n_rods,) is where each
+        rod's free vertices start there."""
+        self.shares_band, self._fresh = True, False
+        first = np.zeros(rods.n_rods, dtype=np.int64)
+        for i in range(rods.n_rods):
+            v = np.arange(rods.v_off[i], rods.v_off[i + 1])
+            free = v[layout.place[v] >= 0]
+            if not len(free):
+                continue
+            own = self._place_all[free]
+            first[i] = own.min()
+            if not np.array_equal(own - first[i], layout.place[free] - layout.dof_off[i] // 3):
+                self.shares_band = False
+        self._free_first = first
+
+    def evaluate(self, step, x: np.ndarray, strain_limit: float) -> int:
+        """The world's forces and band at positions x (n_vertices, 3) [m] from one
+        compiled evaluation in which every vertex has a place in its rod's band: the
+        world's band (``step.terms.band``) is sliced from it, and :meth:`held_blocks`
+        reads its blocks between free and held vertices without evaluating the rods
+        again. Returns what :func:`derods.step.evaluate` does."""
+        bad = evaluate(step.rods, step.frames, x, self._place_all, step.terms, step.ends, step.xmat, strain_limit,
+                       self._bands, self._band_of_rod)
+        free_band_into(self._bands, self._free_first, step.layout.dof_off, step.terms.band)
+        self._fresh = True
+        return bad
 
     def _block_entries(self, layout, v_off, band_rows: int) -> tuple[np.ndarray, ...]:
         """Where K_fh's entries sit in the compiled step's bands: every free dof within the
@@ -319,9 +350,14 @@ class Holders:
         """K_fh (n, 3H) [N/m]: the Gauss-Newton Hessian blocks between the rods' free dofs and
         the held vertices (with each held-both-ends rod's rank-one twist term), from one
         compiled evaluation in which every vertex has a place in its rod's band."""
-        lay, t = step.layout, self._terms_all
-        evaluate(step.rods, step.frames.copy(), step.x, self._place_all, t, step.ends, step.xmat, np.inf,
-                 self._bands, self._band_of_rod)
+        lay = step.layout
+        if self._fresh:  # the step's own evaluation filled the bands (see evaluate)
+            t = step.terms
+            self._fresh = False
+        else:
+            t = self._terms_all
+            evaluate(step.rods, step.frames.copy(), step.x, self._place_all, t, step.ends, step.xmat, np.inf,
+                     self._bands, self._band_of_rod)
         out = gather(self._bands, self._blocks, (lay.n, 3 * len(self.held)))
         if self._twisted is None:  # which held vertices' rods are held at both ends (fixed at compile)
             self._twisted = np.flatnonzero(np.isin(self._rod_of_held, step.rod_tw))

@@ -119,12 +119,17 @@ class Step:
     def forces(self, x: np.ndarray) -> None:
         """Frames, twist, forces and band of every rod at positions x (n_vertices, 3) [m],
         the strain check, and the rods' reactions on their holders."""
-        bad = evaluate(self.rods, self.frames, x, self.layout.place, self.terms, self.ends, self.xmat, MAX_STRAIN,
-                       self._bands, self._band_of_rod)
+        bad = self._evaluate(x)
         if bad >= 0:
             self.diagnosis.strain(bad, float(self.terms.strain[bad]), self.n_steps, self.data.time)
         if self.reactions:
             self.reactions.apply(self.model, self.data, x, self.terms.grad, self.frames.t, self.terms.end_moment)
+
+    def _evaluate(self, x: np.ndarray) -> int:
+        """Frames, twist, forces and the world's band at x (one compiled call); the index of
+        a rod strained beyond MAX_STRAIN, else -1."""
+        return evaluate(self.rods, self.frames, x, self.layout.place, self.terms, self.ends, self.xmat, MAX_STRAIN,
+                        self._bands, self._band_of_rod)
 
     def check(self) -> None:
         """Divergence after the step: MuJoCo's bad-acceleration reset, NaN, runaway speed."""
@@ -244,6 +249,11 @@ class Implicit(Step):
         self._integrated(self.a0 if a is None else a)
         self.n_steps += 1
         self.check()
+
+    def _evaluate(self, x: np.ndarray) -> int:
+        if self.holders and self.holders.shares_band:  # one evaluation for both bands
+            return self.holders.evaluate(self, x, MAX_STRAIN)
+        return super()._evaluate(x)
 
     def _contact(self, d: mujoco.MjData) -> np.ndarray | None:
         """The step's acceleration with contacts re-solved in its metric (None: no
