@@ -128,7 +128,7 @@ class CoupledStep:
         else:
             efc, ext, ext_q = np.zeros(0, np.int64), np.zeros(nn), np.zeros(mq)
         start = ext_sys.a0.copy()
-        if np.any(ext):
+        if ext.any():
             e = ext.copy()
             sm_solve_into(ext_sys.lt, ext_sys.g, sysm.tw_lo, sysm.tw_hi, sysm.tw_c, s, ext_sys.z, sysm.den, e)
             start += e
@@ -201,7 +201,7 @@ class CoupledStep:
             elif miss > self._arc_tol:
                 a, aq, f = solve(again)
             self._aq_last[:] = aq
-        if newton_args is not None or np.any(ext):
+        if newton_args is not None or ext.any():
             self.contact.force[:] = f[:n]
         af = a[:n]
         self._limit_strain(step, af, aq, stiff.jac)

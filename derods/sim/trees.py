@@ -65,12 +65,15 @@ class TreeDynamics:
         self.implicit = model.opt.integrator in (mujoco.mjtIntegrator.mjINT_IMPLICIT,
                                                  mujoco.mjtIntegrator.mjINT_IMPLICITFAST)
         self._bias = int(model.opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICIT)
+        #: data.M's sparsity (fixed by the model)
+        self._m_rows = (model.M_rowadr.astype(np.int64), model.M_rownnz.astype(np.int64),
+                        model.M_colind.astype(np.int64))
 
     def mass(self, m: mujoco.MjModel, d: mujoco.MjData, dofs: np.ndarray) -> np.ndarray:
         """MuJoCo's mass matrix M[dofs, dofs] [kg or kg m^2] for sorted ``dofs``, read from its
         sparse ``data.M`` (a dense nv x nv matrix would not fit a large world)."""
         out = np.empty((len(dofs), len(dofs)))
-        sparse_block_into(d.M, m.M_rowadr, m.M_rownnz, m.M_colind, np.ascontiguousarray(dofs, dtype=np.int64), out)
+        sparse_block_into(d.M, *self._m_rows, np.ascontiguousarray(dofs, dtype=np.int64), out)
         return out
 
     def damping(self, m: mujoco.MjModel, d: mujoco.MjData, dofs: np.ndarray) -> np.ndarray:
