@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from . import _checks, energy, frames, geometry, stencil, twist
+from . import energy, frames, geometry, stencil, twist, validation
 from .energy import Configuration, Derivatives
 
 from .twist import TwistBoundary
@@ -54,20 +54,7 @@ class Material:
     poisson: float = 0.5
 
     def __post_init__(self):
-        _checks.positive("young", self.young, "Pa")
-        _checks.positive("density", self.density, "kg/m^3")
-        _checks.positive("radius", self.radius, "m")
-        if self.radius2 is not None:
-            _checks.positive("radius2", self.radius2, "m")
-        if self.shear is not None:
-            _checks.positive("shear", self.shear, "Pa")
-        elif not (-1.0 < self.poisson <= 0.5):
-            raise ValueError(f"poisson must be in (-1, 0.5], got {self.poisson!r}")
-        for name in ("young", "shear"):
-            value = getattr(self, name)
-            if value is not None and value > MAX_MODULUS:
-                raise ValueError(f"{name} = {value:g} Pa is stiffer than any material (diamond: 1.2e12 Pa); "
-                                 f"use a modulus <= {MAX_MODULUS:g} Pa")
+        validation.material(self)
 
     @property
     def b(self) -> float:
@@ -130,7 +117,7 @@ def check_turns(name: str, x: np.ndarray, closed: bool) -> None:
     if turn.size and np.max(turn) > MAX_TURN:
         idx = np.unravel_index(int(np.argmax(turn)), turn.shape)
         k = int(idx[-1]) if closed else int(idx[-1]) + 1
-        raise ValueError(f"{name} turns by {math.degrees(float(turn[idx])):.1f} degrees at vertex {k}: its edges fold back "
+        raise validation.InvalidInputError(f"{name} turns by {math.degrees(float(turn[idx])):.1f} degrees at vertex {k}: its edges fold back "
                          f"onto each other, where a discrete rod's curvature is infinite; round the fold over several "
                          f"edges (at most {math.degrees(MAX_TURN):.0f} degrees per vertex)")
 
@@ -215,14 +202,8 @@ class Rod:
     active_terms: tuple[str, ...] = field(init=False)
 
     def __post_init__(self):
-        x = _checks.points("rest_x", self.rest_x, self.closed)
+        x = validation.rod_fields(self)
         check_turns("rest_x", x, self.closed)
-        if self.closed and self.boundary.kind != "ring":
-            raise ValueError("a closed rod needs boundary=TwistBoundary('ring', total_twist=...)")
-        if not self.closed and self.boundary.kind == "ring":
-            raise ValueError("TwistBoundary('ring') is for closed rods; pass closed=True")
-        if self.stretch_stiffness is not None:
-            _checks.positive("stretch_stiffness", self.stretch_stiffness, "N")
         rest_len = geometry.norm(geometry.edges(x, self.closed))
         u = frames.bishop_frames(x, self.closed, self.u0)
         cfg = Configuration(x, self.closed, u, np.zeros(rest_len.shape))
@@ -312,7 +293,7 @@ class Rod:
             theta, _ = twist.solve_isotropic(ref, self.vlen, self.material.beta, bd, self.mbar)
             return theta
         if state.x.ndim > 2:
-            raise ValueError("the Newton twist solve takes one rod at a time; loop over the batch")
+            raise validation.InvalidInputError("the Newton twist solve takes one rod at a time; loop over the batch")
 
         def theta_energy(theta, order):
             cfg = Configuration(state.x, self.closed, state.u, theta)
@@ -356,7 +337,7 @@ class Rod:
         names = self.active_terms if terms is None else terms
         unknown = set(names) - set(self.active_terms)
         if unknown:
-            raise ValueError(f"terms {sorted(unknown)} are not active for this rod; active: {self.active_terms}")
+            raise validation.InvalidInputError(f"terms {sorted(unknown)} are not active for this rod; active: {self.active_terms}")
         cfg = Configuration(state.x, self.closed, state.u, state.theta)
         return self._terms(cfg, order, psd, names)
 
@@ -381,7 +362,7 @@ class Rod:
             it must be of the same kind.
         """
         if boundary is not None and boundary.kind != self.boundary.kind:
-            raise ValueError(f"boundary kind {boundary.kind!r} differs from the rod's {self.boundary.kind!r}")
+            raise validation.InvalidInputError(f"boundary kind {boundary.kind!r} differs from the rod's {self.boundary.kind!r}")
         bd = self.boundary if boundary is None else boundary
         if use_kernel is None or use_kernel:
             return self._step_terms_kernel(state, x, bd)

@@ -67,6 +67,9 @@ class GeneralizedAlpha(Implicit):
         rest = self.rods.rest_len
         self._length_scale = float(np.min(rest)) if len(rest) else 1.0
 
+    def carried(self) -> list[np.ndarray]:
+        return super().carried() + [self.a_prev]
+
     def restart(self) -> None:
         """Forget the carried acceleration: the next step starts from the forces'."""
         self._start = True

@@ -4,10 +4,18 @@ Shared by derods' :class:`~derods.sim.world.World` and MuJoCo's native rods in t
 comparison harness, so that every backend fails by the same rules: an edge
 stretched beyond :data:`MAX_STRAIN`, a vertex faster than :data:`MAX_SPEED` or
 not finite, or MuJoCo's bad-acceleration reset (``mjWARN_BADQACC``). The error
-names the step, the rod and a fix.
+names the step, the rod and a fix that fits the cause: a smaller step only when the
+step is the cause, the initial shape when a rod started stretched between its holds.
+
+A World's steps run under a :class:`Guard`: before each step it refuses non-finite
+values in what MuJoCo will read (a NaN written into ``data.qvel`` would make MuJoCo
+reset the whole world to its start and carry on), and after it turns any MuJoCo
+warning into a :class:`DivergenceError`, with the world put back where the step began.
 """
 
 from __future__ import annotations
+
+import math
 
 import mujoco
 import numpy as np
@@ -26,26 +34,40 @@ class Diagnosis:
     """Raises :class:`DivergenceError` with the step, the rod and what to change.
 
     names: rod names, by index. dt [s], mode, mass_damping [1/s]: what the hint suggests
-    changing (None for a backend without these knobs).
+    changing (None for a backend without these knobs). initial_strain: rods held at
+    both ends that start longer than their rest length, by index: their relative excess
+    length (a stiff rod then springs back hard, whatever the step).
     """
 
     def __init__(self, names, dt: float | None = None, mode: str | None = None,
-                 mass_damping: float | None = None):
+                 mass_damping: float | None = None, initial_strain: dict | None = None):
         self.names = list(names)
         self.dt, self.mode, self.mass_damping = dt, mode, mass_damping
+        self.initial_strain = dict(initial_strain or {})
+
+    def who(self, rod: int | None) -> str:
+        if rod is None:
+            return f"rod '{self.names[0]}'" if len(self.names) == 1 else "a rod"
+        return f"rod '{self.names[rod]}'"
+
+    def hint(self, rod: int | None) -> str:
+        """What to change, for the cause derods can see: a rod started stretched between its
+        holds (its initial shape), else the step (dt, mode, damping)."""
+        strained = [rod] if rod in self.initial_strain else ([] if rod is not None else list(self.initial_strain))
+        if strained:
+            i = strained[0]
+            return (f"; rod '{self.names[i]}' is held at both ends and started {100 * self.initial_strain[i]:.3g} % "
+                    "longer than its rest length: start it at its rest shape (add_rod's x), hold one end only, or "
+                    "give it a rest shape as long as x")
+        if self.dt is None:
+            return ""
+        return (f"; try a smaller dt (now {self.dt:g} s)"
+                + ("" if self.mode in (None, "implicit") else ", mode='implicit'")
+                + (f", or more damping (mass_damping now {self.mass_damping:g} 1/s)"
+                   if self.mass_damping is not None else ""))
 
     def _fail(self, rod: int | None, what: str, step: int, time: float):
-        if rod is None:
-            who = f"rod '{self.names[0]}'" if len(self.names) == 1 else "a rod"
-        else:
-            who = f"rod '{self.names[rod]}'"
-        hint = ""
-        if self.dt is not None:
-            hint = (f"; try a smaller dt (now {self.dt:g} s)"
-                    + ("" if self.mode in (None, "implicit") else ", mode='implicit'")
-                    + (f", or more damping (mass_damping now {self.mass_damping:g} 1/s)"
-                       if self.mass_damping is not None else ""))
-        raise DivergenceError(f"{who} diverged at step {step} (t = {time:.6g} s): {what}{hint}")
+        raise DivergenceError(f"{self.who(rod)} diverged at step {step} (t = {time:.6g} s): {what}{self.hint(rod)}")
 
     def strain(self, rod: int, strain: float, step: int, time: float):
         self._fail(rod, f"edge strain {strain:.3g} exceeds {MAX_STRAIN:g}", step, time)
@@ -79,3 +101,184 @@ def check_mujoco(data: mujoco.MjData, dofs: np.ndarray, badqacc_seen: int, diagn
         k = int(np.flatnonzero(~np.isfinite(v))[0]) if not np.all(np.isfinite(v)) else int(np.argmax(np.abs(v)))
         diagnosis.speed(0, float(v[k]), step, data.time)
     return n_bad
+
+
+#: MuJoCo's warnings a step can raise, in words (each stops a World's step: the first
+#: three would make MuJoCo reset the data to the model's start).
+STEP_WARNINGS = {
+    mujoco.mjtWarning.mjWARN_BADQPOS: "a NaN, infinite or huge position (BADQPOS)",
+    mujoco.mjtWarning.mjWARN_BADQVEL: "a NaN, infinite or huge velocity (BADQVEL)",
+    mujoco.mjtWarning.mjWARN_BADQACC: "a NaN, infinite or huge acceleration (BADQACC)",
+    mujoco.mjtWarning.mjWARN_BADCTRL: "a NaN, infinite or huge control (BADCTRL)",
+    mujoco.mjtWarning.mjWARN_CONTACTFULL: "more contacts than its memory holds (CONTACTFULL)",
+    mujoco.mjtWarning.mjWARN_CNSTRFULL: "more constraints than its memory holds (CNSTRFULL)",
+}
+#: MuJoCo's bound on positions, velocities, accelerations and controls (mjMAXVAL):
+#: beyond it a value is "huge", and MuJoCo resets the data.
+MAX_VALUE = 1e10
+
+
+class Guard:
+    """Checks a World's state around each step and keeps the state the step began from.
+
+    model, data: MuJoCo's. layout: where the rods live (:class:`derods.sim.layout.Layout`).
+    step: the mode's step (its ``carried()`` arrays are saved with MuJoCo's state).
+    diagnosis: the world's :class:`Diagnosis` (rod names, hints).
+
+    MuJoCo's automatic reset is turned off (``mjDSBL_AUTORESET``): a failed step is
+    undone from the saved state instead, and nothing the user set (controls, applied
+    forces, mocap poses) is lost. Each step costs a few dot products and copies.
+    """
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, layout, step, diagnosis: Diagnosis):
+        self.model, self.data, self.layout, self.step, self.diagnosis = model, data, layout, step, diagnosis
+        model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
+        flat = lambda a: a.reshape(-1)  # noqa: E731 - views of MuJoCo's buffers
+        # What MuJoCo reads in a step, with the bound beyond which it would reset (or, for
+        # forces and mocap poses, compute NaN accelerations from it).
+        inputs = [("qpos", data.qpos, MAX_VALUE), ("qvel", data.qvel, MAX_VALUE), ("act", data.act, MAX_VALUE),
+                  ("ctrl", data.ctrl, MAX_VALUE), ("qfrc_applied", data.qfrc_applied, math.inf),
+                  ("xfrc_applied", flat(data.xfrc_applied), math.inf), ("mocap_pos", flat(data.mocap_pos), math.inf),
+                  ("mocap_quat", flat(data.mocap_quat), math.inf)]
+        self.inputs = [(name, a, bound * bound) for name, a, bound in inputs if a.size]
+        self.outputs = self.inputs[:2]
+        self.state = [a for a in (data.qpos, data.qvel, data.act) if a.size]
+        self.saved = [a.copy() for a in self.state]
+        self.carried = step.carried()
+        self.saved_carried = [a.copy() for a in self.carried]
+        self.time, self.n_steps = data.time, step.n_steps
+        self.counts = data.warning.number
+        self.saved_counts = self.counts.tobytes()
+        # Which rod vertex each qpos entry and each body is (-1: not a rod's).
+        self.vertex_of_qpos = np.full(model.nq, -1, dtype=np.int64)
+        for k in range(3):
+            self.vertex_of_qpos[layout.qpos_adr + k] = layout.free_vertex
+        self.vertex_of_body = np.full(model.nbody, -1, dtype=np.int64)
+        self.vertex_of_body[layout.body] = np.arange(len(layout.body))
+
+    # -- around a step -----------------------------------------------------------------
+    def before(self) -> None:
+        """Refuse a non-finite or huge value in what the step reads; save the state."""
+        for name, a, bound in self.inputs:
+            if not np.dot(a, a) <= bound:
+                self._check_entries(name, a, bound, written=True)
+        for a, b in zip(self.state, self.saved):
+            np.copyto(b, a)
+        for a, b in zip(self.carried, self.saved_carried):
+            np.copyto(b, a)
+        self.time, self.n_steps = self.data.time, self.step.n_steps
+        self.saved_counts = self.counts.tobytes()
+
+    def after(self) -> None:
+        """Stop if the step raised a MuJoCo warning or left a non-finite state."""
+        if self.counts.tobytes() != self.saved_counts:
+            self.failed(None)
+        for name, a, bound in self.outputs:
+            if not np.dot(a, a) <= bound:
+                self._check_entries(name, a, bound, written=False)
+
+    def failed(self, err: DivergenceError | None) -> None:
+        """The step failed (``err``: derods' own finding, or None): put the world back where
+        the step began and raise the cause that can be seen, MuJoCo's warning first."""
+        step, time = self.n_steps + 1, self.data.time
+        now = np.frombuffer(self.saved_counts, dtype=self.counts.dtype)
+        raised = [w for w in STEP_WARNINGS if self.counts[w] > now[w]]
+        self.restore()
+        if raised:
+            w = raised[0]
+            info = int(self.data.warning[w].lastinfo)
+            where = self._where_dof(info) if w in (mujoco.mjtWarning.mjWARN_BADQVEL,
+                                                   mujoco.mjtWarning.mjWARN_BADQACC) else None
+            if w == mujoco.mjtWarning.mjWARN_BADQPOS:
+                where = self._where("qpos", info)
+            rod = None if where is None else where[0]
+            at = "" if where is None else f" at {where[1]}"
+            msg = (f"{self._who(where)} diverged at step {step} (t = {time:.6g} s): MuJoCo found "
+                   f"{STEP_WARNINGS[w]}{at}{self.diagnosis.hint(rod)}")
+        else:
+            msg = str(err)
+        raise DivergenceError(msg + f". The world is back at its state before step {step} "
+                              f"(t = {self.time:.6g} s)") from err
+
+    def restore(self) -> None:
+        """Put back the state saved before the step (MuJoCo's, and what the mode carries)."""
+        for a, b in zip(self.state, self.saved):
+            np.copyto(a, b)
+        for a, b in zip(self.carried, self.saved_carried):
+            np.copyto(a, b)
+        self.data.time = self.time
+        self.step.n_steps = self.n_steps
+        self.data.qacc_warmstart[:] = 0.0
+        self.step.restart()
+        mujoco.mj_forward(self.model, self.data)
+
+    # -- naming what is wrong ------------------------------------------------------------
+    def _check_entries(self, name: str, a: np.ndarray, bound: float, written: bool) -> None:
+        """Find the first bad entry of ``a`` (the dot product overflows for entries far
+        below ``bound`` too: then nothing is) and raise naming it."""
+        bad = np.flatnonzero(~np.isfinite(a) | (np.abs(a) > math.sqrt(bound)))
+        if not len(bad):
+            return
+        k = int(bad[0])
+        where = self._where(name, k)
+        place = f" ({where[1]})" if where is not None else ""
+        if written:
+            self.saved_counts = self.counts.tobytes()
+            raise DivergenceError(
+                f"data.{name}[{k}]{place} is {float(a[k])!r} before step {self.step.n_steps + 1} (t = {self.data.time:.6g} s): "
+                "a value written between steps that MuJoCo cannot integrate (it would reset the whole world to "
+                "its start); nothing was stepped or reset: write a finite value"
+                + (" (World.set_positions / set_velocities for a rod)" if where and where[0] is not None else "")
+                + " and step again")
+        step, time = self.n_steps + 1, self.data.time
+        rod = where[0] if where is not None else None
+        self.restore()
+        raise DivergenceError(f"{self._who(where)} diverged at step {step} (t = {time:.6g} s): the step left "
+                              f"data.{name}[{k}]{place} = {float(a[k])!r}{self.diagnosis.hint(rod)}. The world is back at "
+                              f"its state before step {step} (t = {self.time:.6g} s)")
+
+    def _who(self, where) -> str:
+        """Who diverged: the rod, or the world when the place is a scene body's."""
+        if where is not None and where[0] is None:
+            return "the world"
+        return self.diagnosis.who(None if where is None else where[0])
+
+    def _vertex(self, v: int, axis: str = "") -> tuple[int, str]:
+        lay = self.layout
+        i = int(np.searchsorted(lay.v_off, v, side="right") - 1)
+        return i, f"rod '{lay.names[i]}', vertex {v - int(lay.v_off[i])}" + (f", {axis}" if axis else "")
+
+    def _where_dof(self, dof: int) -> tuple[int | None, str] | None:
+        if not 0 <= dof < self.model.nv:
+            return None
+        local = int(self.layout.local_of_dof[dof])
+        if local >= 0:
+            return self._vertex(int(self.layout.free_vertex[local // 3]), "xyz"[local % 3])
+        jnt = int(self.model.dof_jntid[dof])
+        return None, f"dof {dof}, joint '{self.model.joint(jnt).name or jnt}'"
+
+    def _where(self, name: str, k: int) -> tuple[int | None, str] | None:
+        """(rod or None, words) for entry k of data's array ``name``."""
+        m = self.model
+        if name == "qpos":
+            v = int(self.vertex_of_qpos[k])
+            if v >= 0:
+                return self._vertex(v, "xyz"[(k - int(self.layout.qpos_adr[self.layout.place[v]])) % 3])
+            jnt = int(np.searchsorted(m.jnt_qposadr, k, side="right") - 1)
+            return None, f"joint '{m.joint(jnt).name or jnt}'"
+        if name in ("qvel", "qfrc_applied"):
+            return self._where_dof(k)
+        if name == "xfrc_applied":
+            body = k // 6
+            v = int(self.vertex_of_body[body])
+            if v >= 0:
+                return self._vertex(v, ("force x", "force y", "force z", "torque x", "torque y", "torque z")[k % 6])
+            return None, f"body '{m.body(body).name or body}'"
+        if name in ("ctrl", "act"):
+            act = k if name == "ctrl" else int(np.flatnonzero(m.actuator_actadr == k)[0])
+            return None, f"actuator '{m.actuator(act).name or act}'"
+        if name in ("mocap_pos", "mocap_quat"):
+            mocap = k // (3 if name == "mocap_pos" else 4)
+            body = int(np.flatnonzero(m.body_mocapid == mocap)[0])
+            return None, f"mocap body '{m.body(body).name or body}'"
+        return None

@@ -151,6 +151,12 @@ class Step:
                                 self.gravity, self.h, self.mass_damping, self.stiffness_damping, s.a_band, s.lt,
                                 s.g, s.z, s.den, self.v, self.other, self._rhs, self._kv, self.a0)
 
+    def carried(self) -> list[np.ndarray]:
+        """The arrays this mode carries from one step to the next (beside MuJoCo's state),
+        which a failed step is undone to (:class:`derods.sim.divergence.Guard`)."""
+        fr = self.frames
+        return [fr.u, fr.t, fr.theta, fr.theta_end]
+
     def restart(self) -> None:
         """The rods' state was set from outside (World.set_positions, set_velocities):
         forget what the mode carries between steps (nothing, but for generalized-alpha)."""
