@@ -243,7 +243,10 @@ def material(m) -> None:
     if m.shear is not None:
         real("shear", m.shear, "Pa", gt=0, example=3e6)
     else:
-        real("poisson", m.poisson, gt=-1.0, le=0.5, example=0.5)
+        if not _is_real(m.poisson):
+            refuse("poisson", "a number in (-1, 0.5]", m.poisson, "pass a float such as 0.5", InvalidTypeError)
+        if not -1.0 < m.poisson <= 0.5:
+            raise InvalidInputError(f"poisson must be in (-1, 0.5], got {m.poisson!r}")
     for name in ("young", "shear"):
         value = getattr(m, name)
         if value is not None and value > MAX_MODULUS:
@@ -348,7 +351,11 @@ def world_options(scene, dt, gravity, mode, mass_damping, stiffness_damping, con
     if integrator is not None:
         choice("integrator", integrator.lower() if isinstance(integrator, str) else integrator, INTEGRATORS)
     if strain_limit is not None:
-        real("strain_limit", strain_limit, gt=0, example=1e-3) if strain_limit != math.inf else None
+        if not _is_real(strain_limit):
+            refuse("strain_limit", "a number > 0 (math.inf: off)", strain_limit, "pass a float such as 1e-3",
+                   InvalidTypeError)
+        if not strain_limit > 0:
+            raise InvalidInputError(f"strain_limit must be > 0 (math.inf: off), got {strain_limit!r}")
     boolean("scene_checks", scene_checks)
 
 

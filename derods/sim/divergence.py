@@ -27,7 +27,13 @@ MAX_SPEED = 1e3
 
 
 class DivergenceError(RuntimeError):
-    """The simulation lost the solution; the message names the step, the rod and a fix."""
+    """The simulation lost the solution; the message names the step, the rod and a fix.
+
+    step: the step whose result was found lost (None: not known)."""
+
+    def __init__(self, message: str, step: int | None = None):
+        super().__init__(message)
+        self.step = step
 
 
 class Diagnosis:
@@ -67,7 +73,8 @@ class Diagnosis:
                    if self.mass_damping is not None else ""))
 
     def _fail(self, rod: int | None, what: str, step: int, time: float):
-        raise DivergenceError(f"{self.who(rod)} diverged at step {step} (t = {time:.6g} s): {what}{self.hint(rod)}")
+        raise DivergenceError(f"{self.who(rod)} diverged at step {step} (t = {time:.6g} s): {what}{self.hint(rod)}",
+                              step)
 
     def strain(self, rod: int, strain: float, step: int, time: float):
         self._fail(rod, f"edge strain {strain:.3g} exceeds {MAX_STRAIN:g}", step, time)
@@ -140,13 +147,16 @@ class Guard:
                   ("ctrl", data.ctrl, MAX_VALUE), ("qfrc_applied", data.qfrc_applied, math.inf),
                   ("xfrc_applied", flat(data.xfrc_applied), math.inf), ("mocap_pos", flat(data.mocap_pos), math.inf),
                   ("mocap_quat", flat(data.mocap_quat), math.inf)]
-        self.inputs = [(name, a, bound * bound) for name, a, bound in inputs if a.size]
+        # One dot product per array: a . a <= bound^2 (or finite, for unbounded arrays) holds
+        # when every entry is finite and within bound; else each entry is looked at.
+        self.inputs = [(name, a, bound * bound if bound < math.inf else np.finfo(float).max, bound)
+                       for name, a, bound in inputs if a.size]
         self.outputs = self.inputs[:2]
-        self.state = [a for a in (data.qpos, data.qvel, data.act) if a.size]
-        self.saved = [a.copy() for a in self.state]
-        self.carried = step.carried()
-        self.saved_carried = [a.copy() for a in self.carried]
-        self.time, self.n_steps = data.time, step.n_steps
+        # The state before this step and before the last one (derods finds an edge
+        # strained beyond MAX_STRAIN at the start of the step after the one that strained it).
+        self.state = [a for a in (data.qpos, data.qvel, data.act) if a.size] + step.carried()
+        self.saved = [_Saved([a.copy() for a in self.state]) for _ in range(2)]
+        self.current = 0
         self.counts = data.warning.number
         self.saved_counts = self.counts.tobytes()
         # Which rod vertex each qpos entry and each body is (-1: not a rod's).
@@ -159,31 +169,31 @@ class Guard:
     # -- around a step -----------------------------------------------------------------
     def before(self) -> None:
         """Refuse a non-finite or huge value in what the step reads; save the state."""
-        for name, a, bound in self.inputs:
-            if not np.dot(a, a) <= bound:
+        for name, a, dot_bound, bound in self.inputs:
+            if not np.dot(a, a) <= dot_bound:
                 self._check_entries(name, a, bound, written=True)
-        for a, b in zip(self.state, self.saved):
-            np.copyto(b, a)
-        for a, b in zip(self.carried, self.saved_carried):
-            np.copyto(b, a)
-        self.time, self.n_steps = self.data.time, self.step.n_steps
+        self.current ^= 1
+        self.saved[self.current].take(self.state, self.data.time, self.step.n_steps)
         self.saved_counts = self.counts.tobytes()
 
     def after(self) -> None:
         """Stop if the step raised a MuJoCo warning or left a non-finite state."""
         if self.counts.tobytes() != self.saved_counts:
             self.failed(None)
-        for name, a, bound in self.outputs:
-            if not np.dot(a, a) <= bound:
+        for name, a, dot_bound, bound in self.outputs:
+            if not np.dot(a, a) <= dot_bound:
                 self._check_entries(name, a, bound, written=False)
 
     def failed(self, err: DivergenceError | None) -> None:
         """The step failed (``err``: derods' own finding, or None): put the world back where
         the step began and raise the cause that can be seen, MuJoCo's warning first."""
-        step, time = self.n_steps + 1, self.data.time
+        cur, last = self.saved[self.current], self.saved[self.current ^ 1]
+        step, time = cur.n_steps + 1, self.data.time
         now = np.frombuffer(self.saved_counts, dtype=self.counts.dtype)
         raised = [w for w in STEP_WARNINGS if self.counts[w] > now[w]]
-        self.restore()
+        # A state the last step left, found lost at the start of this one: back before the last.
+        back = err is not None and not raised and err.step == cur.n_steps and last.n_steps == cur.n_steps - 1
+        saved = self.restore(last if back else cur)
         if raised:
             w = raised[0]
             info = int(self.data.warning[w].lastinfo)
@@ -191,32 +201,35 @@ class Guard:
                                                    mujoco.mjtWarning.mjWARN_BADQACC) else None
             if w == mujoco.mjtWarning.mjWARN_BADQPOS:
                 where = self._where("qpos", info)
-            rod = None if where is None else where[0]
             at = "" if where is None else f" at {where[1]}"
             msg = (f"{self._who(where)} diverged at step {step} (t = {time:.6g} s): MuJoCo found "
-                   f"{STEP_WARNINGS[w]}{at}{self.diagnosis.hint(rod)}")
+                   f"{STEP_WARNINGS[w]}{at}{self._hint(where)}")
         else:
             msg = str(err)
-        raise DivergenceError(msg + f". The world is back at its state before step {step} "
-                              f"(t = {self.time:.6g} s)") from err
+        raise DivergenceError(msg + f". The world is back at its state before step {saved.n_steps + 1} "
+                              f"(t = {saved.time:.6g} s)", err.step if err is not None else step) from err
 
-    def restore(self) -> None:
-        """Put back the state saved before the step (MuJoCo's, and what the mode carries)."""
-        for a, b in zip(self.state, self.saved):
+    def restore(self, saved: "_Saved | None" = None) -> "_Saved":
+        """Put back a saved state (default: the one before this step), MuJoCo's and what
+        the mode carries; returns it. The older one is then forgotten."""
+        saved = saved or self.saved[self.current]
+        for a, b in zip(self.state, saved.arrays):
             np.copyto(a, b)
-        for a, b in zip(self.carried, self.saved_carried):
-            np.copyto(a, b)
-        self.data.time = self.time
-        self.step.n_steps = self.n_steps
+        self.data.time = saved.time
+        self.step.n_steps = saved.n_steps
         self.data.qacc_warmstart[:] = 0.0
         self.step.restart()
         mujoco.mj_forward(self.model, self.data)
+        for other in self.saved:
+            if other is not saved:
+                other.n_steps = -2
+        return saved
 
     # -- naming what is wrong ------------------------------------------------------------
     def _check_entries(self, name: str, a: np.ndarray, bound: float, written: bool) -> None:
-        """Find the first bad entry of ``a`` (the dot product overflows for entries far
-        below ``bound`` too: then nothing is) and raise naming it."""
-        bad = np.flatnonzero(~np.isfinite(a) | (np.abs(a) > math.sqrt(bound)))
+        """Find the first entry of ``a`` that is not finite or beyond ``bound`` (the dot
+        product overflows for entries far below it too: then there is none) and raise naming it."""
+        bad = np.flatnonzero(~np.isfinite(a) | (np.abs(a) > bound))
         if not len(bad):
             return
         k = int(bad[0])
@@ -230,12 +243,19 @@ class Guard:
                 "its start); nothing was stepped or reset: write a finite value"
                 + (" (World.set_positions / set_velocities for a rod)" if where and where[0] is not None else "")
                 + " and step again")
-        step, time = self.n_steps + 1, self.data.time
-        rod = where[0] if where is not None else None
-        self.restore()
+        step, time = self.step.n_steps, self.data.time
+        saved = self.restore()
         raise DivergenceError(f"{self._who(where)} diverged at step {step} (t = {time:.6g} s): the step left "
-                              f"data.{name}[{k}]{place} = {float(a[k])!r}{self.diagnosis.hint(rod)}. The world is back at "
-                              f"its state before step {step} (t = {self.time:.6g} s)")
+                              f"data.{name}[{k}]{place} = {float(a[k])!r}{self._hint(where)}. The world is back at "
+                              f"its state before step {step} (t = {saved.time:.6g} s)", step)
+
+    def _hint(self, where) -> str:
+        """The fix: a scene element's own inputs when it is what failed (a rod's step did
+        not), else the diagnosis' hint for the rod (its initial shape, or the step)."""
+        if where is not None and where[0] is None:
+            return (f"; {where[1]} is not a rod's: check the forces, controls and motion given to it "
+                    "(data.xfrc_applied, qfrc_applied, ctrl, mocap) and its mass")
+        return self.diagnosis.hint(None if where is None else where[0])
 
     def _who(self, where) -> str:
         """Who diverged: the rod, or the world when the place is a scene body's."""
@@ -282,3 +302,16 @@ class Guard:
             body = int(np.flatnonzero(m.body_mocapid == mocap)[0])
             return None, f"mocap body '{m.body(body).name or body}'"
         return None
+
+
+class _Saved:
+    """A copy of a world's state: arrays (MuJoCo's qpos, qvel, act and what the mode
+    carries), time [s] and the step count."""
+
+    def __init__(self, arrays: list):
+        self.arrays, self.time, self.n_steps = arrays, 0.0, -2
+
+    def take(self, state: list, time: float, n_steps: int) -> None:
+        for a, b in zip(state, self.arrays):
+            np.copyto(b, a)
+        self.time, self.n_steps = time, n_steps
