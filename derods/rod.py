@@ -275,6 +275,8 @@ class Rod:
         Transports the reference frames in time to the new tangents (Bergou et
         al. 2010) and solves the quasistatic twist (Bergou et al. 2008, 4.4).
         """
+        validation.rod_state(self, state)
+        validation.rod_positions(self, x)
         t = frames.tangents(x, self.closed)
         u = frames.time_parallel_transport(state.u, state.t, t)
         new = RodState(x, u, t, state.theta)
@@ -287,6 +289,9 @@ class Rod:
 
         boundary: this step's boundary (moving clamps); default ``self.boundary``.
         """
+        validation.rod_state(self, state)
+        if boundary is not None:
+            validation.instance("boundary", boundary, TwistBoundary, "pass derods.TwistBoundary(...)")
         bd = self.boundary if boundary is None else boundary
         if "bend_material" not in self.active_terms:
             ref = frames.reference_twist(state.u, state.t, self.closed)
@@ -334,10 +339,18 @@ class Rod:
         :meth:`advance`). psd: positive semi-definite Hessian for implicit steps.
         terms: a subset of :attr:`active_terms` (default: all of them).
         """
+        validation.rod_state(self, state)
+        if validation.integer("order", order) not in (0, 1, 2):
+            validation.refuse("order", "0 (energy), 1 (and gradients) or 2 (and Hessian)", order)
+        validation.boolean("psd", psd)
         names = self.active_terms if terms is None else terms
+        if isinstance(names, str):
+            validation.refuse("terms", f"a tuple of term names from {self.active_terms}", names,
+                              f"pass ({names!r},)", validation.InvalidTypeError)
         unknown = set(names) - set(self.active_terms)
         if unknown:
-            raise validation.InvalidInputError(f"terms {sorted(unknown)} are not active for this rod; active: {self.active_terms}")
+            raise validation.InvalidInputError(f"terms {sorted(unknown)} are not active for this rod; active: "
+                                               f"{self.active_terms}")
         cfg = Configuration(state.x, self.closed, state.u, state.theta)
         return self._terms(cfg, order, psd, names)
 
@@ -361,6 +374,10 @@ class Rod:
         boundary: this step's twist boundary, when clamps move (default: ``self.boundary``);
             it must be of the same kind.
         """
+        validation.rod_state(self, state)
+        validation.rod_positions(self, x)
+        if boundary is not None:
+            validation.instance("boundary", boundary, TwistBoundary, "pass derods.TwistBoundary(...)")
         if boundary is not None and boundary.kind != self.boundary.kind:
             raise validation.InvalidInputError(f"boundary kind {boundary.kind!r} differs from the rod's {self.boundary.kind!r}")
         bd = self.boundary if boundary is None else boundary
@@ -493,4 +510,5 @@ class Rod:
 
     def with_boundary(self, boundary: TwistBoundary) -> "Rod":
         """The same rod held differently."""
+        validation.instance("boundary", boundary, TwistBoundary, "pass derods.TwistBoundary(...)")
         return replace(self, boundary=boundary)

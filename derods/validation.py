@@ -402,3 +402,27 @@ def rod_index(rod, names: list):
     if not -len(names) <= i < len(names):
         raise InvalidIndexError(f"rod index {i} out of range; the world has {len(names)} rods: {names}")
     return i % len(names)
+
+
+def rod_state(rod, state, name: str = "state") -> None:
+    """A :class:`~derods.RodState` of ``rod``'s sizes (x (..., n_vertices, 3), u and t
+    (..., n_edges, 3), theta (..., n_edges))."""
+    from .rod import RodState
+
+    instance(name, state, RodState, "pass rod.rest_state() or a state from rod.advance()")
+    nv, ne = rod.n_vertices, rod.n_edges
+    for key, tail in (("x", (nv, 3)), ("u", (ne, 3)), ("t", (ne, 3)), ("theta", (ne,))):
+        shape = np.shape(getattr(state, key))
+        if len(shape) < len(tail) or shape[len(shape) - len(tail):] != tail:
+            raise InvalidInputError(f"{name}.{key} must have shape (..., {', '.join(map(str, tail))}) for this rod "
+                                    f"({nv} vertices), got {shape}")
+
+
+def rod_positions(rod, x, name: str = "x") -> None:
+    """Finite vertex positions [m] of ``rod``'s size, shape (..., n_vertices, 3)."""
+    arr = numeric_array(name, x)
+    if arr.ndim < 2 or arr.shape[-2:] != (rod.n_vertices, 3):
+        raise InvalidInputError(f"{name} must have shape (..., {rod.n_vertices}, 3) for this rod, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        idx = tuple(int(i) for i in np.argwhere(~np.isfinite(arr))[0])
+        raise InvalidInputError(f"{name} has a NaN or infinite coordinate at index {idx}: pass finite positions")

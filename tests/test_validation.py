@@ -40,7 +40,7 @@ SCENE = """
 """
 MAT = Material(young=1e6, radius=0.01)
 X = shapes.straight(0.5, 8, start=(0.0, 0.0, 0.2))
-GOOD_CTRL = np.array([0.5, 0.3, 0.0, 0.0])
+ROD = Rod(X, MAT)
 
 
 def build(compile_it: bool = True) -> World:
@@ -134,6 +134,18 @@ BAD = [
     ("u0 two numbers", lambda w: Rod(X, MAT, u0=(1.0, 0.0)), InvalidInputError, "u0"),
     ("boundary str", lambda w: Rod(X, MAT, boundary="clamped"), InvalidTypeError, "boundary"),
     ("closed rod, free boundary", lambda w: Rod(shapes.circle(0.1, 8), MAT, closed=True), InvalidInputError,
+     "boundary"),
+    # Rod's methods
+    ("advance state None", lambda w: ROD.advance(None, X), InvalidTypeError, "state"),
+    ("advance x wrong shape", lambda w: ROD.advance(ROD.rest_state(), X[:4]), InvalidInputError, "x"),
+    ("advance x nan", lambda w: ROD.advance(ROD.rest_state(), X * NAN), InvalidInputError, "x"),
+    ("derivatives order 3", lambda w: ROD.derivatives(ROD.rest_state(), order=3), InvalidInputError, "order"),
+    ("derivatives terms str", lambda w: ROD.derivatives(ROD.rest_state(), terms="stretch"), InvalidTypeError,
+     "terms"),
+    ("energy of another rod's state", lambda w: ROD.energy(Rod(shapes.straight(1.0, 4), MAT).rest_state()),
+     InvalidInputError, "state"),
+    ("with_boundary str", lambda w: ROD.with_boundary("free"), InvalidTypeError, "boundary"),
+    ("step_terms boundary str", lambda w: ROD.step_terms(ROD.rest_state(), X, boundary="free"), InvalidTypeError,
      "boundary"),
     # TwistBoundary
     ("boundary kind", lambda w: TwistBoundary("glued"), InvalidInputError, "kind"),
