@@ -400,3 +400,18 @@ def test_valid_rows_stay_accepted():
     assert w.n_steps == 100
     assert shapes.straight(1.0, 10.0).shape == (11, 3)
     assert replace(ContactParams(), friction=0.5).friction == 0.5
+
+
+def test_a_thin_obstacle_is_warned_of():
+    """A 2 mm plate under a rod falling 1 m at dt = 1e-2 s: 44 mm per step at impact, more
+    than the plate and the rod's diameter together (22 mm): contact may never be found."""
+    scene = '<mujoco><worldbody><geom name="plate" type="box" size="0.5 0.5 0.001"/></worldbody></mujoco>'
+    w = World(mujoco.MjSpec.from_string(scene), dt=1e-2)
+    w.add_rod(Rod(shapes.straight(0.5, 10, start=(-0.25, 0.0, 1.0)), MAT), "falling")
+    with pytest.warns(SceneWarning, match=r"plate is 2 mm thick .* moves 44\.\d mm in one step"):
+        w.compile()
+    calm = World(mujoco.MjSpec.from_string(scene), dt=1e-3)
+    calm.add_rod(Rod(shapes.straight(0.5, 10, start=(-0.25, 0.0, 1.0)), MAT), "falling")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        calm.compile()

@@ -112,7 +112,8 @@ def build_world(p: DropParams, notes=None) -> World:
 
     What a video needs and the scene lacks is added, and ``notes(text)`` (if given) is told:
     an offscreen buffer of the video's size, a light, a camera "main" that frames the rods.
-    A rod that starts inside an obstacle is reported through ``notes`` too.
+    A rod that starts inside an obstacle, or an obstacle thinner than a falling rod's travel
+    in one step, is reported through ``notes`` too (:mod:`derods.sim.scene_checks`).
     """
     path = scenes.path(p.scene)
     try:
@@ -144,6 +145,11 @@ def build_world(p: DropParams, notes=None) -> World:
     world.compile()
     for text in starts_inside(world):
         note(text)
+    tops = [float(x[:, 2].max()) for x in placed]
+    if scene_checks.fall_step(world.model, world.data, tops, [float(r.length) for r in world.rods]) is None:
+        # (A dt too long for the fall is refused by check_step, which says more.)
+        for text in scene_checks.thin_geoms(world.model, world.data, tops, p.material.radius):
+            note(text)
     return world
 
 

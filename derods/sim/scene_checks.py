@@ -64,17 +64,23 @@ def thin_geoms(model: mujoco.MjModel, data: mujoco.MjData, tops: list, radius: f
     return out
 
 
-def starts_inside(model: mujoco.MjModel, data: mujoco.MjData, names: list, radii: list) -> list:
+def starts_inside(model: mujoco.MjModel, data: mujoco.MjData, names: list, radii: list,
+                  holders: list | None = None) -> list:
     """Rods that start inside an obstacle (a contact deeper than their radius), in words,
-    from the contacts of MuJoCo's last forward pass. names, radii [m]: the rods'."""
+    from the contacts of MuJoCo's last forward pass. names, radii [m]: the rods'.
+    holders: for each rod, the ids of the bodies holding its ends (a rod's end sits in
+    its holder by design), or None."""
     out = []
-    for name, r in zip(names, radii):
+    for i, (name, r) in enumerate(zip(names, radii)):
         flex = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_FLEX, name)
+        own = set(holders[i]) if holders else set()
         deepest, geom = 0.0, None
         for c in data.contact[: data.ncon]:
             if flex in (c.flex[0], c.flex[1]) and -c.dist > max(deepest, r):
-                deepest = -c.dist
                 other = c.geom[0] if c.geom[0] >= 0 else c.geom[1]
+                if other >= 0 and int(model.geom_bodyid[other]) in own:
+                    continue
+                deepest = -c.dist
                 geom = model.geom(other).name or f"geom {other}" if other >= 0 else "another rod"
         if geom is not None:
             out.append(f"rod {name!r} starts inside {geom} ({1000 * deepest:.1f} mm deep, more than its radius "

@@ -303,14 +303,19 @@ class World:
         m, d = self._model, self._data
         out = []
         if any(g.contype or g.conaffinity for g in self.spec.geoms):
-            tops = [float(e.x0[:, 2].max()) for e in self._entries]
-            fall = scene_checks.fall_step(m, d, tops, [float(e.rod.length) for e in self._entries])
-            if fall is not None:
-                out.append(fall)
-            else:
-                radius = min(e.rod.material.radius for e in self._entries)
-                out += scene_checks.thin_geoms(m, d, tops, radius)
-            out += scene_checks.starts_inside(m, d, self.rod_names, [e.rod.material.radius for e in self._entries])
+            # Only rods with no end held can fall.
+            free = [e for e in self._entries if e.start == "free" and e.end == "free"]
+            if free:
+                tops = [float(e.x0[:, 2].max()) for e in free]
+                fall = scene_checks.fall_step(m, d, tops, [float(e.rod.length) for e in free])
+                if fall is not None:
+                    out.append(fall)
+                else:
+                    radius = min(e.rod.material.radius for e in free)
+                    out += scene_checks.thin_geoms(m, d, tops, radius)
+            holders = [[m.body(b).id for b in (e.start_body, e.end_body) if b] for e in self._entries]
+            out += scene_checks.starts_inside(m, d, self.rod_names, [e.rod.material.radius for e in self._entries],
+                                              holders)
         return out + scene_checks.stretched_words(self._entries, stretched)
 
     # -- access --------------------------------------------------------------
