@@ -126,36 +126,51 @@ MAX_VALUE = 1e10
 
 
 class Guard:
-    """Checks a World's state around each step and keeps the state the step began from.
+    """Keeps the state each step of a World begins from, and stops a step that loses it.
 
     model, data: MuJoCo's. layout: where the rods live (:class:`derods.sim.layout.Layout`).
     step: the mode's step (its ``carried()`` arrays are saved with MuJoCo's state).
     diagnosis: the world's :class:`Diagnosis` (rod names, hints).
 
-    MuJoCo's automatic reset is turned off (``mjDSBL_AUTORESET``): a failed step is
-    undone from the saved state instead, and nothing the user set (controls, applied
-    forces, mocap poses) is lost. Each step costs a few dot products and copies.
+    MuJoCo's automatic reset is turned off (``mjDSBL_AUTORESET``): MuJoCo only counts its
+    warnings, and a step that raised one, or that derods found lost, is undone from the
+    saved state, with nothing the user set (controls, applied forces, mocap poses) lost.
+    A NaN, infinite or huge value written into what MuJoCo reads (qpos, qvel, ctrl,
+    qfrc_applied, xfrc_applied ...) always makes the step fail so (MuJoCo warns of it, or
+    derods' solve does); the arrays are then searched for it, and it is named as the
+    cause. The arrays a step may ignore (controls, activations, forces on bodies without
+    dofs, mocap poses) are looked at before every step. Per step: a copy of the state, a
+    dot product per array looked at, the warning counters compared.
     """
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, layout, step, diagnosis: Diagnosis):
         self.model, self.data, self.layout, self.step, self.diagnosis = model, data, layout, step, diagnosis
         model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
         flat = lambda a: a.reshape(-1)  # noqa: E731 - views of MuJoCo's buffers
-        # What MuJoCo reads in a step, with the bound beyond which it would reset (or, for
-        # forces and mocap poses, compute NaN accelerations from it).
-        inputs = [("qpos", data.qpos, MAX_VALUE), ("qvel", data.qvel, MAX_VALUE), ("act", data.act, MAX_VALUE),
-                  ("ctrl", data.ctrl, MAX_VALUE), ("qfrc_applied", data.qfrc_applied, math.inf),
-                  ("xfrc_applied", flat(data.xfrc_applied), math.inf), ("mocap_pos", flat(data.mocap_pos), math.inf),
-                  ("mocap_quat", flat(data.mocap_quat), math.inf)]
-        # One dot product per array: a . a <= bound^2 (or finite, for unbounded arrays) holds
-        # when every entry is finite and within bound; else each entry is looked at.
-        self.inputs = [(name, a, bound * bound if bound < math.inf else np.finfo(float).max, bound)
-                       for name, a, bound in inputs if a.size]
-        self.outputs = self.inputs[:2]
+        # What MuJoCo reads in a step, with the bound beyond which MuJoCo would reset (or,
+        # for forces and mocap poses, compute a NaN acceleration from it).
+        self.inputs = [(name, a, bound) for name, a, bound in (
+            ("qpos", data.qpos, MAX_VALUE), ("qvel", data.qvel, MAX_VALUE), ("act", data.act, MAX_VALUE),
+            ("ctrl", data.ctrl, MAX_VALUE), ("qfrc_applied", data.qfrc_applied, math.inf),
+            ("xfrc_applied", flat(data.xfrc_applied), math.inf), ("mocap_pos", flat(data.mocap_pos), math.inf),
+            ("mocap_quat", flat(data.mocap_quat), math.inf)) if a.size]
+        # One dot product per array: a . a <= bound^2 (finite, for unbounded arrays) holds
+        # when every entry is finite and within bound.
+        self.ahead = [(name, a, _dot_bound(bound)) for name, a, bound in self.inputs
+                      if name in ("act", "ctrl", "xfrc_applied", "mocap_pos", "mocap_quat")]
+        self.qvel, self.qvel_bound = data.qvel, _dot_bound(MAX_VALUE)
         # The state before this step and before the last one (derods finds an edge
         # strained beyond MAX_STRAIN at the start of the step after the one that strained it).
-        self.state = [a for a in (data.qpos, data.qvel, data.act) if a.size] + step.carried()
+        self.state = [a for a in (data.qpos, data.qvel, data.act, data.qacc_warmstart) if a.size] + step.carried()
         self.saved = [_Saved([a.copy() for a in self.state]) for _ in range(2)]
+        # Where the inputs a step changes are in the saved state (the step began from them):
+        # qpos, qvel, act, and qfrc_applied where the rods' reactions on their holders go.
+        self.in_state = {name: i for name, a, _ in self.inputs for i, b in enumerate(self.state)
+                         if name in ("qpos", "qvel", "act", "qfrc_applied") and a.shape == b.shape
+                         and np.shares_memory(a, b)}
+        # Otherwise derods writes qfrc_applied of the rod dofs only: a user's value there is
+        # overwritten before MuJoCo reads it.
+        self.not_rod_dofs = np.flatnonzero(layout.local_of_dof < 0)
         self.current = 0
         self.counts = data.warning.number
         self.saved_counts = self.counts.tobytes()
@@ -168,86 +183,123 @@ class Guard:
 
     # -- around a step -----------------------------------------------------------------
     def before(self) -> None:
-        """Refuse a non-finite or huge value in what the step reads; save the state."""
-        for name, a, dot_bound, bound in self.inputs:
+        """Refuse a bad control, activation, body force or mocap pose (a step may not
+        notice one); save the state."""
+        for name, a, dot_bound in self.ahead:
             if not np.dot(a, a) <= dot_bound:
-                self._check_entries(name, a, bound, written=True)
+                self._written(self._bad_input(), False)
         self.current ^= 1
-        self.saved[self.current].take(self.state, self.data.time, self.step.n_steps)
+        saved = self.saved[self.current]
+        copyto = np.copyto
+        for a, b in zip(self.state, saved.arrays):
+            copyto(b, a)
+        saved.time, saved.n_steps = self.data.time, self.step.n_steps
         self.saved_counts = self.counts.tobytes()
 
     def after(self) -> None:
-        """Stop if the step raised a MuJoCo warning or left a non-finite state."""
-        if self.counts.tobytes() != self.saved_counts:
+        """Stop if the step raised a MuJoCo warning or left a velocity NaN or huge (a
+        position goes bad only through its velocity)."""
+        if self.counts.tobytes() != self.saved_counts or not np.dot(self.qvel, self.qvel) <= self.qvel_bound:
             self.failed(None)
-        for name, a, dot_bound, bound in self.outputs:
-            if not np.dot(a, a) <= dot_bound:
-                self._check_entries(name, a, bound, written=False)
 
-    def failed(self, err: DivergenceError | None) -> None:
-        """The step failed (``err``: derods' own finding, or None): put the world back where
-        the step began and raise the cause that can be seen, MuJoCo's warning first."""
+    def failed(self, err: Exception | None) -> None:
+        """The step failed (``err``: what derods' step raised, or None): put the world back
+        where the step began (or, for a state the last step left and this one found lost,
+        where that one began) and raise the cause that can be seen: a bad value written
+        between steps, MuJoCo's warning, derods' own finding, a velocity gone bad."""
         cur, last = self.saved[self.current], self.saved[self.current ^ 1]
+        written = self._bad_input(cur)
+        if written is not None:
+            self.restore(cur)
+            self._written(written, True, err)
         step, time = cur.n_steps + 1, self.data.time
         now = np.frombuffer(self.saved_counts, dtype=self.counts.dtype)
         raised = [w for w in STEP_WARNINGS if self.counts[w] > now[w]]
-        # A state the last step left, found lost at the start of this one: back before the last.
-        back = err is not None and not raised and err.step == cur.n_steps and last.n_steps == cur.n_steps - 1
+        info = int(self.data.warning[raised[0]].lastinfo) if raised else -1
+        qvel_bad = self._bad(self.qvel, MAX_VALUE)
+        found = getattr(err, "step", None)
+        back = (isinstance(err, DivergenceError) and not raised and found == cur.n_steps
+                and last.n_steps == cur.n_steps - 1)
         saved = self.restore(last if back else cur)
         if raised:
             w = raised[0]
-            info = int(self.data.warning[w].lastinfo)
-            where = self._where_dof(info) if w in (mujoco.mjtWarning.mjWARN_BADQVEL,
-                                                   mujoco.mjtWarning.mjWARN_BADQACC) else None
+            where = None
             if w == mujoco.mjtWarning.mjWARN_BADQPOS:
                 where = self._where("qpos", info)
+            elif w in (mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC):
+                where = self._where_dof(info)
             at = "" if where is None else f" at {where[1]}"
             msg = (f"{self._who(where)} diverged at step {step} (t = {time:.6g} s): MuJoCo found "
                    f"{STEP_WARNINGS[w]}{at}{self._hint(where)}")
-        else:
+        elif isinstance(err, DivergenceError):
             msg = str(err)
+        elif err is not None:
+            raise err  # not a lost solution: the world is back where the step began
+        elif qvel_bad is not None:
+            k, value = qvel_bad
+            where = self._where("qvel", k)
+            place = f" ({where[1]})" if where is not None else ""
+            msg = (f"{self._who(where)} diverged at step {step} (t = {time:.6g} s): the step left data.qvel[{k}]"
+                   f"{place} = {value!r}{self._hint(where)}")
+        else:
+            names = [mujoco.mjtWarning(w).name for w in range(len(now)) if self.counts[w] != now[w]]
+            msg = f"the world diverged at step {step} (t = {time:.6g} s): MuJoCo warned {names}{self._hint(None)}"
         raise DivergenceError(msg + f". The world is back at its state before step {saved.n_steps + 1} "
-                              f"(t = {saved.time:.6g} s)", err.step if err is not None else step) from err
+                              f"(t = {saved.time:.6g} s)", found if found is not None else step) from err
 
     def restore(self, saved: "_Saved | None" = None) -> "_Saved":
         """Put back a saved state (default: the one before this step), MuJoCo's and what
-        the mode carries; returns it. The older one is then forgotten."""
+        the mode carries; returns it. The other one is then forgotten."""
         saved = saved or self.saved[self.current]
         for a, b in zip(self.state, saved.arrays):
             np.copyto(a, b)
         self.data.time = saved.time
         self.step.n_steps = saved.n_steps
-        self.data.qacc_warmstart[:] = 0.0
         self.step.restart()
-        mujoco.mj_forward(self.model, self.data)
         for other in self.saved:
             if other is not saved:
                 other.n_steps = -2
+        if self._bad_input() is None:
+            mujoco.mj_forward(self.model, self.data)
         return saved
 
     # -- naming what is wrong ------------------------------------------------------------
-    def _check_entries(self, name: str, a: np.ndarray, bound: float, written: bool) -> None:
-        """Find the first entry of ``a`` that is not finite or beyond ``bound`` (the dot
-        product overflows for entries far below it too: then there is none) and raise naming it."""
+    @staticmethod
+    def _bad(a: np.ndarray, bound: float) -> tuple[int, float] | None:
+        """The first entry of ``a`` that is not finite or beyond ``bound``: (index, value)."""
         bad = np.flatnonzero(~np.isfinite(a) | (np.abs(a) > bound))
-        if not len(bad):
-            return
-        k = int(bad[0])
+        return (int(bad[0]), float(a[bad[0]])) if len(bad) else None
+
+    def _bad_input(self, saved: "_Saved | None" = None) -> tuple[str, int, float] | None:
+        """The first bad entry of what MuJoCo reads: (array name, index, value), or None;
+        with ``saved``, as the step that began from it read them."""
+        for name, a, bound in self.inputs:
+            if saved is not None and name in self.in_state:
+                a = saved.arrays[self.in_state[name]]
+            elif name == "qfrc_applied":
+                bad = self._bad(a[self.not_rod_dofs], bound)
+                if bad is not None:
+                    return (name, int(self.not_rod_dofs[bad[0]]), bad[1])
+                continue
+            bad = self._bad(a, bound)
+            if bad is not None:
+                return (name, *bad)
+        return None
+
+    def _written(self, bad: tuple[str, int, float], stepped: bool, err: Exception | None = None) -> None:
+        """Raise naming a bad value written between steps."""
+        name, k, value = bad
         where = self._where(name, k)
         place = f" ({where[1]})" if where is not None else ""
-        if written:
-            self.saved_counts = self.counts.tobytes()
-            raise DivergenceError(
-                f"data.{name}[{k}]{place} is {float(a[k])!r} before step {self.step.n_steps + 1} (t = {self.data.time:.6g} s): "
-                "a value written between steps that MuJoCo cannot integrate (it would reset the whole world to "
-                "its start); nothing was stepped or reset: write a finite value"
-                + (" (World.set_positions / set_velocities for a rod)" if where and where[0] is not None else "")
-                + " and step again")
-        step, time = self.step.n_steps, self.data.time
-        saved = self.restore()
-        raise DivergenceError(f"{self._who(where)} diverged at step {step} (t = {time:.6g} s): the step left "
-                              f"data.{name}[{k}]{place} = {float(a[k])!r}{self._hint(where)}. The world is back at "
-                              f"its state before step {step} (t = {saved.time:.6g} s)", step)
+        n = self.step.n_steps + 1
+        done = (f"the step was undone: the world is back at its state before step {n}" if stepped
+                else "nothing was stepped")
+        raise DivergenceError(
+            f"data.{name}[{k}]{place} is {value!r} before step {n} (t = {self.data.time:.6g} s): a value written "
+            f"between steps that MuJoCo cannot integrate (with its automatic reset it would restart the whole world "
+            f"from its start); {done}: write a finite value"
+            + (" (World.set_positions / set_velocities for a rod)" if where and where[0] is not None else "")
+            + " and step again", n) from err
 
     def _hint(self, where) -> str:
         """The fix: a scene element's own inputs when it is what failed (a rod's step did
@@ -304,14 +356,14 @@ class Guard:
         return None
 
 
+def _dot_bound(bound: float) -> float:
+    """What a . a may reach when every entry of a is within ``bound`` (finite, if unbounded)."""
+    return bound * bound if bound < math.inf else float(np.finfo(float).max)
+
+
 class _Saved:
     """A copy of a world's state: arrays (MuJoCo's qpos, qvel, act and what the mode
     carries), time [s] and the step count."""
 
     def __init__(self, arrays: list):
         self.arrays, self.time, self.n_steps = arrays, 0.0, -2
-
-    def take(self, state: list, time: float, n_steps: int) -> None:
-        for a, b in zip(state, self.arrays):
-            np.copyto(b, a)
-        self.time, self.n_steps = time, n_steps

@@ -155,7 +155,13 @@ class Step:
         """The arrays this mode carries from one step to the next (beside MuJoCo's state),
         which a failed step is undone to (:class:`derods.sim.divergence.Guard`)."""
         fr = self.frames
-        return [fr.u, fr.t, fr.theta, fr.theta_end]
+        out = [fr.u, fr.t, fr.theta]
+        if self._moving:
+            out.append(fr.theta_end)  # clamps on moving bodies
+        if self.reactions:
+            # What the rods put on their holders: added to qfrc_applied, the last step's removed.
+            out += [self.reactions._applied, self.qfrc_applied]
+        return out
 
     def restart(self) -> None:
         """The rods' state was set from outside (World.set_positions, set_velocities):

@@ -38,7 +38,7 @@ from ..rod import Rod, RodState, check_turns
 from ..step import Frames, RodSet
 from .clamps import end_bodies, twist_boundary
 from . import scene_checks
-from .divergence import Diagnosis, DivergenceError, Guard
+from .divergence import Diagnosis, Guard
 from .alpha_step import GeneralizedAlpha
 from .integrators import Explicit, Implicit, Projection, explicit_dt_limit
 from .layout import END_KINDS, PROGRESS_FROM, Layout, RodEntry, add_to_spec
@@ -120,10 +120,10 @@ class World:
     Add rods with :meth:`add_rod`, then :meth:`step`. The MuJoCo model is
     compiled on first use and available as :attr:`model` and :attr:`data`.
     Inputs derods cannot simulate are refused with a :class:`derods.InvalidInputError`
-    (:mod:`derods.validation`). Each step checks what MuJoCo will read (a NaN written
-    into ``data.qvel`` raises :class:`derods.DivergenceError` before anything is
-    stepped or reset) and turns MuJoCo's warnings into a DivergenceError, the world put
-    back where the step began (:class:`derods.sim.divergence.Guard`; MuJoCo's
+    (:mod:`derods.validation`). A step that loses the solution, or that MuJoCo warns
+    about (a NaN written into ``data.qvel`` between steps: MuJoCo would restart the world
+    from its start), raises :class:`derods.DivergenceError` naming the cause, the world
+    put back where the step began (:class:`derods.sim.divergence.Guard`; MuJoCo's
     automatic reset is off in :attr:`model`).
     """
 
@@ -499,17 +499,18 @@ class World:
     def step(self, n_steps: int = 1) -> None:
         """Advance ``n_steps`` steps of ``model.opt.timestep``.
 
-        Raises :class:`derods.DivergenceError` if a step loses the solution (the world is
-        then back where that step began) or if MuJoCo would read a NaN or huge value
-        written between steps (nothing is stepped).
+        Raises :class:`derods.DivergenceError` if a step loses the solution or MuJoCo
+        would read a NaN or huge value written between steps: the world is then back where
+        that step began (see :class:`derods.sim.divergence.Guard`).
         """
-        n_steps = validation.integer("n_steps", n_steps, ge=0)
+        if type(n_steps) is not int or n_steps < 0:
+            n_steps = validation.integer("n_steps", n_steps, ge=0)
         self.compile()
         step, guard = self._step.step, self._guard
         for _ in range(n_steps):
             guard.before()
             try:
                 step()
-            except DivergenceError as err:
+            except Exception as err:  # undone, and named if a bad value written between steps caused it
                 guard.failed(err)
             guard.after()
