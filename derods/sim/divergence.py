@@ -162,7 +162,8 @@ class Guard:
         # The state before this step and before the last one (derods finds an edge
         # strained beyond MAX_STRAIN at the start of the step after the one that strained it).
         self.state = [a for a in (data.qpos, data.qvel, data.act, data.qacc_warmstart) if a.size] + step.carried()
-        self.saved = [_Saved([a.copy() for a in self.state]) for _ in range(2)]
+        self.flat = [a.reshape(-1) for a in self.state]  # views: saved by one concatenate
+        self.saved = [_Saved(self.state) for _ in range(2)]
         # Where the inputs a step changes are in the saved state (the step began from them):
         # qpos, qvel, act, and qfrc_applied where the rods' reactions on their holders go.
         self.in_state = {name: i for name, a, _ in self.inputs for i, b in enumerate(self.state)
@@ -190,9 +191,7 @@ class Guard:
                 self._written(self._bad_input(), False)
         self.current ^= 1
         saved = self.saved[self.current]
-        copyto = np.copyto
-        for a, b in zip(self.state, saved.arrays):
-            copyto(b, a)
+        np.concatenate(self.flat, out=saved.buf)
         saved.time, saved.n_steps = self.data.time, self.step.n_steps
         self.saved_counts = self.counts.tobytes()
 
@@ -362,8 +361,11 @@ def _dot_bound(bound: float) -> float:
 
 
 class _Saved:
-    """A copy of a world's state: arrays (MuJoCo's qpos, qvel, act and what the mode
-    carries), time [s] and the step count."""
+    """A copy of a world's state: its arrays (MuJoCo's qpos, qvel, act, warm start and what
+    the mode carries) laid end to end in ``buf``, time [s] and the step count."""
 
-    def __init__(self, arrays: list):
-        self.arrays, self.time, self.n_steps = arrays, 0.0, -2
+    def __init__(self, state: list):
+        self.buf = np.concatenate([a.reshape(-1) for a in state])
+        ends = np.cumsum([a.size for a in state])
+        self.arrays = [self.buf[e - a.size:e].reshape(a.shape) for a, e in zip(state, ends)]
+        self.time, self.n_steps = 0.0, -2
