@@ -85,9 +85,12 @@ class GeneralizedAlpha(Implicit):
             return 0
         inv_mass = self._touching() if self.n_steps else self.inv_mass
         self._shift[:] = 0.0
-        n, _ = limit_strain(x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, inv_mass, self.layout.place,
-                            self._zero, self._shift, 1.0, self.limited, self.strain_limit, PROJECTION_TOL,
-                            PROJECTION_MAX_ITER, self._xp, x)
+        try:
+            n, _ = limit_strain(x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, inv_mass,
+                                self.layout.place, self._zero, self._shift, 1.0, self.limited, self.strain_limit,
+                                PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp, x)
+        except ValueError as err:  # the projection's banded Cholesky, in a state gone wild
+            self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)
         if n:
             lay = self.layout
             qpos = (lay.qpos_adr[:, None] + np.arange(3)).ravel()

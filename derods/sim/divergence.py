@@ -87,8 +87,9 @@ class Diagnosis:
         self._fail(None, "MuJoCo reported bad accelerations (BADQACC) and reset the state", step, time)
 
     def not_positive_definite(self, what: str, step: int, time: float):
-        self._fail(None, f"the implicit system is not positive definite ({what}): the rods' stiffness is out of "
-                         "proportion to their masses (check young, radius, density)", step, time)
+        cause = "" if self.initial_strain else (": the rods' stiffness is out of proportion to their masses (check "
+                                                "young, radius, density)")
+        self._fail(None, f"the implicit system is not positive definite ({what}){cause}", step, time)
 
     def speed(self, rod: int, velocity: float, step: int, time: float):
         if not np.isfinite(velocity):
