@@ -160,12 +160,13 @@ def numeric_array(name: str, value) -> np.ndarray:
 def vector(name: str, value, n: int = 3, unit: str = "", *, nonzero: bool = False) -> np.ndarray:
     """``value`` as a finite float array of shape (n,)."""
     need = f"{n} finite numbers" + (f" [{unit}]" if unit else "") + (", not all zero" if nonzero else "")
-    arr = numeric_array(name, value) if not _is_real(value) else None
-    if arr is None:
+    if _is_real(value):
         refuse(name, need, value, f"pass a sequence of {n} floats", InvalidTypeError)
-    if arr.shape != (n,) or not np.all(np.isfinite(arr)) or (nonzero and not np.any(arr)):
-        refuse(name, need, arr if arr.shape == (n,) else value,
-               f"pass {n} floats" if arr.shape != (n,) else "")
+    arr = numeric_array(name, value)
+    if arr.shape != (n,):
+        refuse(name, need, value, f"pass {n} floats")
+    if not np.all(np.isfinite(arr)) or (nonzero and not np.any(arr)):
+        refuse(name, need, arr)
     return arr
 
 
@@ -216,10 +217,12 @@ def points(name: str, x, closed: bool = False) -> np.ndarray:
 
 def rgba(name: str, value) -> tuple:
     """Four numbers in [0, 1] (red, green, blue, alpha), as a tuple of floats."""
-    arr = numeric_array(name, value) if not _is_real(value) else None
-    if arr is None or arr.shape != (4,) or not np.all((arr >= 0) & (arr <= 1)):
-        refuse(name, "4 numbers in [0, 1] (red, green, blue, alpha)", value, "pass e.g. (0.9, 0.3, 0.15, 1.0)",
-               InvalidTypeError if arr is None else InvalidInputError)
+    need, fix = "4 numbers in [0, 1] (red, green, blue, alpha)", "pass e.g. (0.9, 0.3, 0.15, 1.0)"
+    if _is_real(value):
+        refuse(name, need, value, fix, InvalidTypeError)
+    arr = numeric_array(name, value)
+    if arr.shape != (4,) or not np.all((arr >= 0) & (arr <= 1)):
+        refuse(name, need, value, fix)
     return tuple(float(c) for c in arr)
 
 

@@ -17,7 +17,6 @@ import mujoco
 import numpy as np
 import pytest
 
-import derods
 from derods import (ContactParams, DivergenceError, InvalidIndexError, InvalidInputError, InvalidTypeError,
                     Material, Rod, SceneWarning, TwistBoundary, World, shapes)
 
