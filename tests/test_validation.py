@@ -322,6 +322,27 @@ def test_nan_in_qvel_stops_before_mujoco_resets_and_keeps_the_state():
     assert _state(w) == _state(twin)
 
 
+@pytest.mark.parametrize("mode", ["alpha", "projection", "explicit"])
+def test_a_refused_write_leaves_every_mode_stepping_as_before(mode):
+    """What the alpha mode carries between steps (its last acceleration, whether it starts
+    afresh) is kept with the state: a world that refused a NaN steps on as its twin."""
+    def world():
+        w = World(mujoco.MjSpec.from_string(SCENE), dt=1e-2 if mode != "explicit" else 1e-5, mode=mode)
+        w.add_rod(Rod(X, MAT), "rope", start="clamp")
+        w.step(4)
+        return w
+
+    w, twin = world(), world()
+    k = int(w.dofs("rope")[5])
+    w.data.qvel[k] = INF
+    with pytest.raises(DivergenceError, match=rf"data\.qvel\[{k}\] \(rod 'rope', vertex 3, z\) is inf"):
+        w.step()
+    w.data.qvel[k] = twin.data.qvel[k]
+    w.step(5)
+    twin.step(5)
+    assert _state(w) == _state(twin)
+
+
 def test_a_step_mujoco_warns_about_is_undone_and_named():
     """A force of 1e13 N on the 1 kg slider makes its acceleration huge (BADQACC): the step
     is undone (time, positions and the rod's frames as before it), and the error names the

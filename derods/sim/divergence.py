@@ -130,7 +130,8 @@ class Guard:
     """Keeps the state each step of a World begins from, and stops a step that loses it.
 
     model, data: MuJoCo's. layout: where the rods live (:class:`derods.sim.layout.Layout`).
-    step: the mode's step (its ``carried()`` arrays are saved with MuJoCo's state).
+    step: the mode's step (its ``carried()`` arrays and ``carried_flags`` are saved with
+    MuJoCo's state).
     diagnosis: the world's :class:`Diagnosis` (rod names, hints).
 
     MuJoCo's automatic reset is turned off (``mjDSBL_AUTORESET``): MuJoCo only counts its
@@ -194,6 +195,8 @@ class Guard:
         saved = self.saved[self.current]
         np.concatenate(self.flat, out=saved.buf)
         saved.time, saved.n_steps = self.data.time, self.step.n_steps
+        for k in self.step.carried_flags:
+            saved.flags[k] = getattr(self.step, k)
         self.saved_counts = self.counts.tobytes()
 
     def after(self) -> None:
@@ -255,7 +258,8 @@ class Guard:
             np.copyto(a, b)
         self.data.time = saved.time
         self.step.n_steps = saved.n_steps
-        self.step.restart()
+        for k, v in saved.flags.items():
+            setattr(self.step, k, v)
         for other in self.saved:
             if other is not saved:
                 other.n_steps = -2
@@ -369,4 +373,4 @@ class _Saved:
         self.buf = np.concatenate([a.reshape(-1) for a in state])
         ends = np.cumsum([a.size for a in state])
         self.arrays = [self.buf[e - a.size:e].reshape(a.shape) for a, e in zip(state, ends)]
-        self.time, self.n_steps = 0.0, -2
+        self.time, self.n_steps, self.flags = 0.0, -2, {}

@@ -163,6 +163,9 @@ class Step:
             out += [self.reactions._applied, self.qfrc_applied]
         return out
 
+    #: Flags the mode carries from one step to the next, saved with ``carried()``.
+    carried_flags: tuple[str, ...] = ()
+
     def restart(self) -> None:
         """The rods' state was set from outside (World.set_positions, set_velocities):
         forget what the mode carries between steps (nothing, but for generalized-alpha)."""
