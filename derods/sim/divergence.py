@@ -190,7 +190,9 @@ class Guard:
         notice one); save the state."""
         for name, a, dot_bound in self.ahead:
             if not np.dot(a, a) <= dot_bound:
-                self._written(self._bad_input(), False)
+                bad = self._bad_input()
+                if bad is not None:  # (else only the dot product overflowed)
+                    self._written(bad, False)
         self.current ^= 1
         saved = self.saved[self.current]
         np.concatenate(self.flat, out=saved.buf)
