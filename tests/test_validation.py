@@ -209,7 +209,7 @@ BAD = [
      InvalidInputError, "start"),
     ("b: a batch of rods", lambda b: b.add_rod(Rod(np.stack([X, X + 1.0]), MAT), "r2"), InvalidInputError, "rod"),
     ("b: every vertex held", lambda b: b.add_rod(Rod(X[:3], MAT), "r2", start="clamp", end="pin"),
-     InvalidInputError, "start"),
+     InvalidInputError, "rod 'r2'"),
     # a compiled world's methods
     ("w: step negative", lambda w: w.step(-5), InvalidInputError, "n_steps"),
     ("w: step fractional", lambda w: w.step(2.5), InvalidInputError, "n_steps"),

@@ -223,13 +223,14 @@ class World:
             rod = rod.with_boundary(twist_boundary(rod, start, end, name))
         if self.requested_mode == "projection":
             if rod.closed:
-                raise validation.InvalidInputError("rod: mode='projection' handles open rods only; use mode='implicit' for rings")
+                raise validation.InvalidInputError("mode='projection' handles open rods only; use "
+                                                   "mode='implicit' for rings")
             # Edge lengths are held by projection; a vanishing spring keeps the term's bookkeeping.
             rod = replace(rod, stretch_stiffness=1e-9 * rod.material.stretch_stiffness)
         entry = RodEntry(name, rod, x0, start, end, start_body, end_body, rgba)
         if entry.fixed.all():
-            raise validation.InvalidInputError(f"rod '{name}' has every vertex held (start={start!r}, end={end!r}, "
-                                               f"{rod.n_vertices} vertices); give it more edges")
+            # (This wording is also the command line's answer.)
+            raise validation.InvalidInputError(f"rod '{name}' has every vertex held; give it more edges")
         self._entries.append(entry)
         return len(self._entries) - 1
 
