@@ -117,9 +117,10 @@ def check_turns(name: str, x: np.ndarray, closed: bool) -> None:
     if turn.size and np.max(turn) > MAX_TURN:
         idx = np.unravel_index(int(np.argmax(turn)), turn.shape)
         k = int(idx[-1]) if closed else int(idx[-1]) + 1
-        raise validation.InvalidInputError(f"{name} turns by {math.degrees(float(turn[idx])):.1f} degrees at vertex {k}: its edges fold back "
-                         f"onto each other, where a discrete rod's curvature is infinite; round the fold over several "
-                         f"edges (at most {math.degrees(MAX_TURN):.0f} degrees per vertex)")
+        raise validation.InvalidInputError(
+            f"{name} turns by {math.degrees(float(turn[idx])):.1f} degrees at vertex {k}: its edges fold back onto each "
+            f"other, where a discrete rod's curvature is infinite; round the fold over several edges (at most "
+            f"{math.degrees(MAX_TURN):.0f} degrees per vertex)")
 
 
 @dataclass
@@ -379,7 +380,8 @@ class Rod:
         if boundary is not None:
             validation.instance("boundary", boundary, TwistBoundary, "pass derods.TwistBoundary(...)")
         if boundary is not None and boundary.kind != self.boundary.kind:
-            raise validation.InvalidInputError(f"boundary kind {boundary.kind!r} differs from the rod's {self.boundary.kind!r}")
+            raise validation.InvalidInputError(f"boundary kind {boundary.kind!r} differs from the rod's "
+                                               f"{self.boundary.kind!r}")
         bd = self.boundary if boundary is None else boundary
         if use_kernel is None or use_kernel:
             return self._step_terms_kernel(state, x, bd)

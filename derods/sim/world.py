@@ -37,8 +37,8 @@ from .. import validation
 from ..rod import Rod, RodState, check_turns
 from ..step import Frames, RodSet
 from .clamps import end_bodies, twist_boundary
-from . import scene_checks
 from .divergence import Diagnosis, Guard
+from .scene_checks import fall_step, starts_inside, stretched, stretched_words, thin_geoms
 from .alpha_step import GeneralizedAlpha
 from .integrators import Explicit, Implicit, Projection, explicit_dt_limit
 from .layout import END_KINDS, PROGRESS_FROM, Layout, RodEntry, add_to_spec
@@ -204,10 +204,10 @@ class World:
             check_turns("x", x0, rod.closed)
         lightest = float(np.min(rod.vertex_mass))
         if lightest < MIN_VERTEX_MASS:
-            raise validation.InvalidInputError(f"rod {name!r}: its lightest vertex weighs {lightest:.3g} kg, below what MuJoCo integrates "
-                             f"({MIN_VERTEX_MASS:g} kg; radius {rod.material.radius:g} m, density "
-                             f"{rod.material.density:g} kg/m^3, edges {float(np.min(rod.rest_len)):.3g} m): "
-                             "use a larger radius, density or edge length")
+            raise validation.InvalidInputError(
+                f"rod {name!r}: its lightest vertex weighs {lightest:.3g} kg, below what MuJoCo integrates "
+                f"({MIN_VERTEX_MASS:g} kg; radius {rod.material.radius:g} m, density {rod.material.density:g} "
+                f"kg/m^3, edges {float(np.min(rod.rest_len)):.3g} m): use a larger radius, density or edge length")
         for key, body, kind in (("start", start_body, start), ("end", end_body, end)):
             if body is None:
                 continue
@@ -280,8 +280,8 @@ class World:
                 f"integrator: the implicit rod step needs MuJoCo's Euler, implicit or implicitfast integrator, "
                 f"the scene uses {name}; pass integrator='implicitfast' to World"
             )
-        stretched = scene_checks.stretched(self._entries)
-        diagnosis = Diagnosis(layout.names, h, self.mode, self.mass_damping, stretched)
+        excess = stretched(self._entries)
+        diagnosis = Diagnosis(layout.names, h, self.mode, self.mass_damping, excess)
         self._step = _STEPS[self.mode](model, data, layout, self._entries, rods, fr, ends, self.mass_damping,
                                        self.stiffness_damping, diagnosis)
         if self.strain_limit is not None:
@@ -291,7 +291,7 @@ class World:
         self._model, self._data, self._layout = model, data, layout
         self._guard = Guard(model, data, layout, self._step, diagnosis)
         if self.scene_checks:
-            for text in self._scene_report(stretched):
+            for text in self._scene_report(excess):
                 warnings.warn(text, validation.SceneWarning, stacklevel=3)
         #: Where compile's time went [s]: adding the rods to the spec, MuJoCo's compile
         #: (its body-dof sparsity sorts a row of all nv dofs by insertion: nv^2 / 2 moves,
@@ -299,7 +299,7 @@ class World:
         self.compile_times = {"rods_to_spec": t1 - t0, "mujoco_compile": t2 - t1,
                               "rest": time.perf_counter() - t2}
 
-    def _scene_report(self, stretched: dict) -> list:
+    def _scene_report(self, excess: dict) -> list:
         """What :mod:`derods.sim.scene_checks` finds in this compiled world, in words."""
         m, d = self._model, self._data
         out = []
@@ -308,16 +308,15 @@ class World:
             free = [e for e in self._entries if e.start == "free" and e.end == "free"]
             if free:
                 tops = [float(e.x0[:, 2].max()) for e in free]
-                fall = scene_checks.fall_step(m, d, tops, [float(e.rod.length) for e in free])
+                fall = fall_step(m, d, tops, [float(e.rod.length) for e in free])
                 if fall is not None:
                     out.append(fall)
                 else:
                     radius = min(e.rod.material.radius for e in free)
-                    out += scene_checks.thin_geoms(m, d, tops, radius)
+                    out += thin_geoms(m, d, tops, radius)
             holders = [[m.body(b).id for b in (e.start_body, e.end_body) if b] for e in self._entries]
-            out += scene_checks.starts_inside(m, d, self.rod_names, [e.rod.material.radius for e in self._entries],
-                                              holders)
-        return out + scene_checks.stretched_words(self._entries, stretched)
+            out += starts_inside(m, d, self.rod_names, [e.rod.material.radius for e in self._entries], holders)
+        return out + stretched_words(self._entries, excess)
 
     # -- access --------------------------------------------------------------
     @property
