@@ -436,3 +436,20 @@ def test_a_thin_obstacle_is_warned_of():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         calm.compile()
+
+
+def test_an_end_inside_its_holder_is_not_warned_of():
+    """A rod pinned inside the box that holds it sits there by design (a held edge does not
+    collide with its holder); the same rod laid through a box that does not hold it is
+    warned of."""
+    def world(held: bool):
+        w = World(mujoco.MjSpec.from_string(SCENE), dt=1e-2)
+        x = shapes.straight(0.5, 10, start=(0.0, 1.0, 0.3))  # starts at the slider's centre
+        w.add_rod(Rod(x, MAT), "tail", start="pin" if held else "free", start_body="slider" if held else None)
+        return w
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", SceneWarning)
+        world(held=True).compile()
+    with pytest.warns(SceneWarning, match=r"rod 'tail' starts inside"):
+        world(held=False).compile()
