@@ -147,7 +147,8 @@ class Guard:
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, layout, step, diagnosis: Diagnosis):
         self.model, self.data, self.layout, self.step, self.diagnosis = model, data, layout, step, diagnosis
-        model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
+        # (A MuJoCo without the flag resets by itself: the saved state is put back all the same.)
+        model.opt.disableflags |= int(getattr(mujoco.mjtDisableBit, "mjDSBL_AUTORESET", 0))
         flat = lambda a: a.reshape(-1)  # noqa: E731 - views of MuJoCo's buffers
         # What MuJoCo reads in a step, with the bound beyond which MuJoCo would reset (or,
         # for forces and mocap poses, compute a NaN acceleration from it).
