@@ -9,12 +9,16 @@ frame), :mod:`derods.shapes` (rest shapes and Bezier curves) and
 MuJoCo: :class:`World` (:mod:`derods.sim`); scenes that ship with derods:
 :mod:`derods.scenes`. Importing derods sets nothing up (no GL backend, no
 environment variables); rendering chooses its backend when first used.
+Inputs derods cannot simulate are refused at this boundary by :mod:`derods.validation`
+with an :class:`InvalidInputError` (a ``ValueError``) or :class:`InvalidTypeError` (also
+a ``TypeError``) that names the parameter, the value and what to pass.
 """
 
 from .energy import Configuration, Derivatives
 from .rod import Material, Rod, RodState
 from .stencil import Hessian
 from .twist import TwistBoundary
+from .validation import InvalidIndexError, InvalidInputError, InvalidTypeError, SceneWarning
 from . import frames, geometry, shapes
 
 __version__ = "0.1.0"
@@ -40,9 +44,13 @@ __all__ = [
     "MODES",
     "Derivatives",
     "Hessian",
+    "InvalidIndexError",
+    "InvalidInputError",
+    "InvalidTypeError",
     "Material",
     "Rod",
     "RodState",
+    "SceneWarning",
     "TwistBoundary",
     "World",
     "frames",

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from . import _checks, scenes
+from . import validation, scenes
 from .rod import Material, Rod
 from .sim.world import ContactParams, World
 
@@ -67,7 +67,7 @@ class Hair:
             value = getattr(self, name)
             if int(value) != value or value < low:
                 raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
-        _checks.positive("segment", self.segment, "m")
+        validation.positive("segment", self.segment, "m")
         for name in ("curl_radius", "curl_pitch"):
             lo, hi = getattr(self, name)
             if not (0 <= lo <= hi and math.isfinite(hi)):
@@ -168,7 +168,7 @@ class Motion:
     def __post_init__(self):
         if self.kind not in MOTIONS:
             raise ValueError(f"motion must be one of {MOTIONS}, got {self.kind!r}")
-        _checks.non_negative("settle", self.settle, "s")
+        validation.non_negative("settle", self.settle, "s")
 
     def angles(self, t: float) -> tuple[float, float]:
         """(yaw about z, pitch about y) of the head [rad] at time t [s]."""

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from . import _checks, energy, frames, geometry, stencil, twist
+from . import energy, frames, geometry, stencil, twist, validation
 from .energy import Configuration, Derivatives
 
 from .twist import TwistBoundary
@@ -54,20 +54,7 @@ class Material:
     poisson: float = 0.5
 
     def __post_init__(self):
-        _checks.positive("young", self.young, "Pa")
-        _checks.positive("density", self.density, "kg/m^3")
-        _checks.positive("radius", self.radius, "m")
-        if self.radius2 is not None:
-            _checks.positive("radius2", self.radius2, "m")
-        if self.shear is not None:
-            _checks.positive("shear", self.shear, "Pa")
-        elif not (-1.0 < self.poisson <= 0.5):
-            raise ValueError(f"poisson must be in (-1, 0.5], got {self.poisson!r}")
-        for name in ("young", "shear"):
-            value = getattr(self, name)
-            if value is not None and value > MAX_MODULUS:
-                raise ValueError(f"{name} = {value:g} Pa is stiffer than any material (diamond: 1.2e12 Pa); "
-                                 f"use a modulus <= {MAX_MODULUS:g} Pa")
+        validation.material(self)
 
     @property
     def b(self) -> float:
@@ -130,9 +117,10 @@ def check_turns(name: str, x: np.ndarray, closed: bool) -> None:
     if turn.size and np.max(turn) > MAX_TURN:
         idx = np.unravel_index(int(np.argmax(turn)), turn.shape)
         k = int(idx[-1]) if closed else int(idx[-1]) + 1
-        raise ValueError(f"{name} turns by {math.degrees(float(turn[idx])):.1f} degrees at vertex {k}: its edges fold back "
-                         f"onto each other, where a discrete rod's curvature is infinite; round the fold over several "
-                         f"edges (at most {math.degrees(MAX_TURN):.0f} degrees per vertex)")
+        raise validation.InvalidInputError(
+            f"{name} turns by {math.degrees(float(turn[idx])):.1f} degrees at vertex {k}: its edges fold back onto each "
+            f"other, where a discrete rod's curvature is infinite; round the fold over several edges (at most "
+            f"{math.degrees(MAX_TURN):.0f} degrees per vertex)")
 
 
 @dataclass
@@ -215,14 +203,8 @@ class Rod:
     active_terms: tuple[str, ...] = field(init=False)
 
     def __post_init__(self):
-        x = _checks.points("rest_x", self.rest_x, self.closed)
+        x = validation.rod_fields(self)
         check_turns("rest_x", x, self.closed)
-        if self.closed and self.boundary.kind != "ring":
-            raise ValueError("a closed rod needs boundary=TwistBoundary('ring', total_twist=...)")
-        if not self.closed and self.boundary.kind == "ring":
-            raise ValueError("TwistBoundary('ring') is for closed rods; pass closed=True")
-        if self.stretch_stiffness is not None:
-            _checks.positive("stretch_stiffness", self.stretch_stiffness, "N")
         rest_len = geometry.norm(geometry.edges(x, self.closed))
         u = frames.bishop_frames(x, self.closed, self.u0)
         cfg = Configuration(x, self.closed, u, np.zeros(rest_len.shape))
@@ -294,6 +276,8 @@ class Rod:
         Transports the reference frames in time to the new tangents (Bergou et
         al. 2010) and solves the quasistatic twist (Bergou et al. 2008, 4.4).
         """
+        validation.rod_state(self, state)
+        validation.rod_positions(self, x)
         t = frames.tangents(x, self.closed)
         u = frames.time_parallel_transport(state.u, state.t, t)
         new = RodState(x, u, t, state.theta)
@@ -306,13 +290,16 @@ class Rod:
 
         boundary: this step's boundary (moving clamps); default ``self.boundary``.
         """
+        validation.rod_state(self, state)
+        if boundary is not None:
+            validation.instance("boundary", boundary, TwistBoundary, "pass derods.TwistBoundary(...)")
         bd = self.boundary if boundary is None else boundary
         if "bend_material" not in self.active_terms:
             ref = frames.reference_twist(state.u, state.t, self.closed)
             theta, _ = twist.solve_isotropic(ref, self.vlen, self.material.beta, bd, self.mbar)
             return theta
         if state.x.ndim > 2:
-            raise ValueError("the Newton twist solve takes one rod at a time; loop over the batch")
+            raise validation.InvalidInputError("the Newton twist solve takes one rod at a time; loop over the batch")
 
         def theta_energy(theta, order):
             cfg = Configuration(state.x, self.closed, state.u, theta)
@@ -353,10 +340,18 @@ class Rod:
         :meth:`advance`). psd: positive semi-definite Hessian for implicit steps.
         terms: a subset of :attr:`active_terms` (default: all of them).
         """
+        validation.rod_state(self, state)
+        if validation.integer("order", order) not in (0, 1, 2):
+            validation.refuse("order", "0 (energy), 1 (and gradients) or 2 (and Hessian)", order)
+        validation.boolean("psd", psd)
         names = self.active_terms if terms is None else terms
+        if isinstance(names, str):
+            validation.refuse("terms", f"a tuple of term names from {self.active_terms}", names,
+                              f"pass ({names!r},)", validation.InvalidTypeError)
         unknown = set(names) - set(self.active_terms)
         if unknown:
-            raise ValueError(f"terms {sorted(unknown)} are not active for this rod; active: {self.active_terms}")
+            raise validation.InvalidInputError(f"terms {sorted(unknown)} are not active for this rod; active: "
+                                               f"{self.active_terms}")
         cfg = Configuration(state.x, self.closed, state.u, state.theta)
         return self._terms(cfg, order, psd, names)
 
@@ -380,8 +375,13 @@ class Rod:
         boundary: this step's twist boundary, when clamps move (default: ``self.boundary``);
             it must be of the same kind.
         """
+        validation.rod_state(self, state)
+        validation.rod_positions(self, x)
+        if boundary is not None:
+            validation.instance("boundary", boundary, TwistBoundary, "pass derods.TwistBoundary(...)")
         if boundary is not None and boundary.kind != self.boundary.kind:
-            raise ValueError(f"boundary kind {boundary.kind!r} differs from the rod's {self.boundary.kind!r}")
+            raise validation.InvalidInputError(f"boundary kind {boundary.kind!r} differs from the rod's "
+                                               f"{self.boundary.kind!r}")
         bd = self.boundary if boundary is None else boundary
         if use_kernel is None or use_kernel:
             return self._step_terms_kernel(state, x, bd)
@@ -512,4 +512,5 @@ class Rod:
 
     def with_boundary(self, boundary: TwistBoundary) -> "Rod":
         """The same rod held differently."""
+        validation.instance("boundary", boundary, TwistBoundary, "pass derods.TwistBoundary(...)")
         return replace(self, boundary=boundary)

@@ -10,32 +10,28 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import _checks
+from . import validation
 
 _SAMPLES_PER_SEGMENT = 512  # dense samples per Bezier segment for the arc-length table
 
 
 def _count(name: str, n: int, minimum: int) -> int:
-    if int(n) != n or n < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {n!r}")
-    return int(n)
+    return validation.integer(name, n, ge=minimum)
 
 
 def _unit(name: str, v) -> np.ndarray:
-    v = np.asarray(v, dtype=float)
-    nv = np.linalg.norm(v)
-    if v.shape != (3,) or not np.isfinite(nv) or nv == 0:
-        raise ValueError(f"{name} must be a nonzero 3-vector, got {v!r}")
-    return v / nv
+    v = validation.vector(name, v, 3, nonzero=True)
+    return v / np.linalg.norm(v)
 
 
 def straight(length: float, n_edges: int, start=(0.0, 0.0, 0.0), direction=(1.0, 0.0, 0.0)) -> np.ndarray:
     """A straight rod of ``length`` [m] from ``start`` [m] along ``direction``."""
-    _checks.positive("length", length, "m")
+    validation.positive("length", length, "m")
     n = _count("n_edges", n_edges, 2)
     d = _unit("direction", direction)
+    start = validation.vector("start", start, 3, "m")
     s = np.linspace(0.0, length, n + 1)
-    return np.asarray(start, dtype=float) + s[:, None] * d
+    return start + s[:, None] * d
 
 
 def _plane_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -47,11 +43,12 @@ def _plane_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def circle(radius: float, n_edges: int, center=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0)) -> np.ndarray:
     """A closed ring of ``radius`` [m] in the plane through ``center`` normal to ``normal``."""
-    _checks.positive("radius", radius, "m")
+    validation.positive("radius", radius, "m")
     n = _count("n_edges", n_edges, 3)
     a, b = _plane_basis(_unit("normal", normal))
+    center = validation.vector("center", center, 3, "m")
     phi = 2.0 * np.pi * np.arange(n) / n
-    return np.asarray(center, dtype=float) + radius * (np.cos(phi)[:, None] * a + np.sin(phi)[:, None] * b)
+    return center + radius * (np.cos(phi)[:, None] * a + np.sin(phi)[:, None] * b)
 
 
 def helix(radius: float, pitch: float, turns: float, n_edges: int, start=(0.0, 0.0, 0.0)) -> np.ndarray:
@@ -61,15 +58,15 @@ def helix(radius: float, pitch: float, turns: float, n_edges: int, start=(0.0, 0
     of turns. Curvature radius / (radius^2 + c^2), torsion c / (radius^2 + c^2)
     with c = pitch / (2 pi).
     """
-    _checks.positive("radius", radius, "m")
-    _checks.positive("turns", turns)
-    if not np.isfinite(pitch):
-        raise ValueError(f"pitch must be finite [m], got {pitch!r}")
+    validation.positive("radius", radius, "m")
+    validation.positive("turns", turns)
+    validation.real("pitch", pitch, "m", example=0.05)
     n = _count("n_edges", n_edges, 2)
+    start = validation.vector("start", start, 3, "m")
     phi = np.linspace(0.0, 2.0 * np.pi * turns, n + 1)
     c = pitch / (2.0 * np.pi)
     pts = np.stack([radius * np.cos(phi), radius * np.sin(phi), c * phi], axis=1)
-    return pts - pts[0] + np.asarray(start, dtype=float)
+    return pts - pts[0] + start
 
 
 def resample(points, n_edges: int, closed: bool = False) -> np.ndarray:
@@ -78,7 +75,7 @@ def resample(points, n_edges: int, closed: bool = False) -> np.ndarray:
     points: polyline vertices [m], shape (m, 3); a closed polyline does not
     repeat its first point.
     """
-    p = _checks.points("points", points, closed)
+    p = validation.points("points", points, validation.boolean("closed", closed))
     n = _count("n_edges", n_edges, 3 if closed else 2)
     if closed:
         p = np.concatenate([p, p[:1]], axis=0)
@@ -99,30 +96,29 @@ def bezier_control_points(control_points, continuity: str = "C1") -> np.ndarray:
     P_{3s-1}, which makes the tangent continuous exactly.
     Returns the control points actually used, shape (3 k + 1, 3).
     """
-    p = np.array(control_points, dtype=float)
+    p = np.array(validation.numeric_array("control_points", control_points), dtype=float)
     if p.ndim != 2 or p.shape[1] != 3 or p.shape[0] < 4 or (p.shape[0] - 1) % 3:
-        raise ValueError(
+        raise validation.InvalidInputError(
             f"control_points must have shape (3k+1, 3) for k >= 1 cubic segments, got {p.shape}"
         )
     if not np.all(np.isfinite(p)):
-        raise ValueError("control_points has a NaN or infinite coordinate")
-    if continuity not in ("C0", "C1"):
-        raise ValueError(f"continuity must be 'C0' or 'C1', got {continuity!r}")
+        raise validation.InvalidInputError("control_points has a NaN or infinite coordinate: pass finite points")
+    validation.choice("continuity", continuity, ("C0", "C1"))
     k = (p.shape[0] - 1) // 3
     scale = max(float(np.max(np.ptp(p, axis=0))), 1e-300)
     for s in range(k):
         seg = p[3 * s : 3 * s + 4]
         if np.max(np.linalg.norm(seg - seg[0], axis=1)) <= 1e-12 * scale:
-            raise ValueError(
-                f"Bezier segment {s} is degenerate: control points {3 * s}..{3 * s + 3} coincide; "
+            raise validation.InvalidInputError(
+                f"control_points: Bezier segment {s} is degenerate: control points {3 * s}..{3 * s + 3} coincide; "
                 "move them apart"
             )
     if continuity == "C1":
         for s in range(1, k):
             j = 3 * s
             if np.linalg.norm(p[j] - p[j - 1]) <= 1e-12 * scale:
-                raise ValueError(
-                    f"C1 join {s}: control point {j - 1} coincides with join point {j}, so the "
+                raise validation.InvalidInputError(
+                    f"control_points: C1 join {s}: control point {j - 1} coincides with join point {j}, so the "
                     "tangent there is undefined; move it or use continuity='C0'"
                 )
             p[j + 1] = 2.0 * p[j] - p[j - 1]
@@ -135,9 +131,13 @@ def bezier_eval(control_points: np.ndarray, u: np.ndarray, derivative: int = 0) 
     control_points: shape (3k + 1, 3). u: curve parameter in [0, k], segment
     s covering [s, s + 1], any shape. Returns shape u.shape + (3,).
     """
-    p = np.asarray(control_points, dtype=float)
+    p = validation.numeric_array("control_points", control_points)
+    if p.ndim != 2 or p.shape[1] != 3 or p.shape[0] < 4 or (p.shape[0] - 1) % 3:
+        raise validation.InvalidInputError(f"control_points must have shape (3k+1, 3), got {p.shape}")
     k = (p.shape[0] - 1) // 3
-    u = np.asarray(u, dtype=float)
+    u = validation.numeric_array("u", u)
+    if not np.all(np.isfinite(u)):
+        raise validation.InvalidInputError("u must be finite (the curve parameter in [0, k]): pass finite values")
     s = np.clip(np.floor(u).astype(int), 0, k - 1)
     w = (u - s)[..., None]
     p0, p1, p2, p3 = (p[3 * s + i] for i in range(4))
@@ -149,7 +149,7 @@ def bezier_eval(control_points: np.ndarray, u: np.ndarray, derivative: int = 0) 
         return 6 * ((1 - w) * (p2 - 2 * p1 + p0) + w * (p3 - 2 * p2 + p1))
     if derivative == 3:
         return 6 * (p3 - 3 * p2 + 3 * p1 - p0) + 0 * w
-    raise ValueError(f"derivative must be 0, 1, 2 or 3, got {derivative!r}")
+    validation.refuse("derivative", "0, 1, 2 or 3", derivative)
 
 
 def bezier(control_points, n_edges: int, continuity: str = "C1") -> np.ndarray:
@@ -185,14 +185,15 @@ def cantilever(length: float, n_edges: int, start=(0.0, 0.0, 0.0), direction=(1.
     static tip error O(h^2) instead of O(h).
     Returns vertex positions [m], shape (n_edges + 1, 3).
     """
-    _checks.positive("length", length, "m")
+    validation.positive("length", length, "m")
     n = _count("n_edges", n_edges, 2)
     d = _unit("direction", direction)
-    if clamped_ends not in (1, 2):
-        raise ValueError(f"clamped_ends must be 1 or 2, got {clamped_ends!r}")
+    if validation.integer("clamped_ends", clamped_ends) not in (1, 2):
+        validation.refuse("clamped_ends", "1 or 2", clamped_ends)
+    start = validation.vector("start", start, 3, "m")
     h = length / (n - 0.5) if clamped_ends == 1 else length / (n - 1)
     s = -0.5 * h + h * np.arange(n + 1)
-    return np.asarray(start, dtype=float) + s[:, None] * d
+    return start + s[:, None] * d
 
 
 def overhand_knot(scale: float = 0.02, tail: float = 0.2, n_edges: int = 100,
@@ -204,8 +205,9 @@ def overhand_knot(scale: float = 0.02, tail: float = 0.2, n_edges: int = 100,
     [m] are added to both cut ends, so closing the tails far away gives back a trefoil.
     Returns ``n_edges`` + 1 vertices [m] at equal arc length, lifted by ``height`` [m].
     """
-    _checks.positive("scale", scale, "m")
-    _checks.positive("tail", tail, "m")
+    validation.positive("scale", scale, "m")
+    validation.positive("tail", tail, "m")
+    validation.real("height", height, "m", example=0.5)
     t0, cut = np.pi / 3, 0.35
     t = np.linspace(t0 + cut, t0 + 2 * np.pi - cut, 400)
     c = np.stack([np.sin(t) + 2 * np.sin(2 * t), np.cos(t) - 2 * np.cos(2 * t), -np.sin(3 * t)], 1) * scale

@@ -49,10 +49,9 @@ class TwistBoundary:
     total_twist: float = 0.0
 
     def __post_init__(self):
-        if self.kind not in ("free", "clamped", "ring"):
-            raise ValueError(f"TwistBoundary.kind must be 'free', 'clamped' or 'ring', got {self.kind!r}")
-        if self.kind == "clamped" and (self.theta_first is None or self.theta_last is None):
-            raise ValueError("a clamped TwistBoundary needs theta_first and theta_last [rad]")
+        from .validation import twist_boundary
+
+        twist_boundary(self)
 
     def seam_offset(self, n_joints: int) -> np.ndarray | float:
         """Twist offset per joint [rad]: Theta at joint 0 of a ring, else 0."""

@@ -19,6 +19,7 @@ from .. import scenes, shapes
 from ..viz import render
 from ..rod import Material, Rod
 from ..twist import TwistBoundary
+from ..sim import scene_checks
 from ..sim.divergence import DivergenceError
 from ..sim.world import ContactParams, World
 
@@ -111,7 +112,8 @@ def build_world(p: DropParams, notes=None) -> World:
 
     What a video needs and the scene lacks is added, and ``notes(text)`` (if given) is told:
     an offscreen buffer of the video's size, a light, a camera "main" that frames the rods.
-    A rod that starts inside an obstacle is reported through ``notes`` too.
+    A rod that starts inside an obstacle, or an obstacle thinner than a falling rod's travel
+    in one step, is reported through ``notes`` too (:mod:`derods.sim.scene_checks`).
     """
     path = scenes.path(p.scene)
     try:
@@ -122,7 +124,10 @@ def build_world(p: DropParams, notes=None) -> World:
     site = next((s for s in spec.sites if s.name == "drop"), None)
     centre = np.array(site.pos, dtype=float) if site is not None else np.array([0.0, 0.0, 1.0])
     spread = float(site.size[0]) if site is not None else 0.3
-    world = World(spec, dt=p.dt, mode=p.mode, mass_damping=p.mass_damping, contact=ContactParams(friction=0.8))
+    # The scene's checks are this command's own: a dt too long for the fall is refused
+    # (check_step) and the rest noted, not warned.
+    world = World(spec, dt=p.dt, mode=p.mode, mass_damping=p.mass_damping, contact=ContactParams(friction=0.8),
+                  scene_checks=False)
     rng = np.random.default_rng(p.seed)
     base = rod_shape(p.shape, p.length, p.n_edges, p.control)
     ring = p.shape == "ring"
@@ -140,6 +145,11 @@ def build_world(p: DropParams, notes=None) -> World:
     world.compile()
     for text in starts_inside(world):
         note(text)
+    tops = [float(x[:, 2].max()) for x in placed]
+    if scene_checks.fall_step(world.model, world.data, tops, [float(r.length) for r in world.rods]) is None:
+        # (A dt too long for the fall is refused by check_step, which says more.)
+        for text in scene_checks.thin_geoms(world.model, world.data, tops, p.material.radius):
+            note(text)
     return world
 
 
@@ -218,37 +228,17 @@ def check_step(world: World) -> None:
     its length in one step at impact: no contact can hold that (it would pass through
     obstacles within a step). Smaller steps that still lose contact are caught while the
     video is made (:func:`contacts_held`)."""
-    m = world.model
-    floor = float(np.min(world.data.geom_xpos[:, 2])) if m.ngeom else 0.0
-    top = max(float(world.positions(i)[:, 2].max()) for i in range(len(world.rods)))
-    v = math.sqrt(2.0 * 9.81 * max(top - floor, 0.0))
-    dt = m.opt.timestep
-    half = 0.5 * min(float(r.length) for r in world.rods)
-    if v * dt > half:
-        raise ValueError(f"dt {dt:g} s lets a rod falling from {top - floor:.2g} m move {v * dt:.3g} m in one step "
-                         f"at impact ({v:.2g} m/s), more than half its length ({half:.3g} m): no contact can hold; "
-                         f"use dt <= {half / v:.3g} s (dt <= {0.1 * half / v:.2g} s films it well)")
+    tops = [float(world.positions(i)[:, 2].max()) for i in range(len(world.rods))]
+    refusal = scene_checks.fall_step(world.model, world.data, tops, [float(r.length) for r in world.rods])
+    if refusal is not None:
+        raise ValueError(refusal)
 
 
 def starts_inside(world: World) -> list:
     """Rods that start inside an obstacle (a contact deeper than their radius), in words."""
     m, d = world.model, world.data
     mujoco.mj_forward(m, d)
-    out = []
-    for i, name in enumerate(world.rod_names):
-        r = world.rods[i].material.radius
-        flex = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_FLEX, name)
-        deepest, geom = 0.0, None
-        for c in d.contact[: d.ncon]:
-            if flex in (c.flex[0], c.flex[1]) and -c.dist > max(deepest, r):
-                deepest = -c.dist
-                other = c.geom[0] if c.geom[0] >= 0 else c.geom[1]
-                geom = m.geom(other).name or f"geom {other}" if other >= 0 else "another rod"
-        if geom is not None:
-            out.append(f"rod {name!r} starts inside {geom} ({1000 * deepest:.1f} mm deep, more than its radius "
-                       f"{1000 * r:g} mm); it will be pushed out violently or stay stuck: move the scene's 'drop' "
-                       "site or raise it")
-    return out
+    return scene_checks.starts_inside(m, d, world.rod_names, [r.material.radius for r in world.rods])
 
 
 def overlay_painter(world: World, kind: str):

@@ -67,6 +67,11 @@ class GeneralizedAlpha(Implicit):
         rest = self.rods.rest_len
         self._length_scale = float(np.min(rest)) if len(rest) else 1.0
 
+    carried_flags = ("_start",)
+
+    def carried(self) -> list[np.ndarray]:
+        return super().carried() + [self.a_prev]
+
     def restart(self) -> None:
         """Forget the carried acceleration: the next step starts from the forces'."""
         self._start = True
@@ -82,9 +87,12 @@ class GeneralizedAlpha(Implicit):
             return 0
         inv_mass = self._touching() if self.n_steps else self.inv_mass
         self._shift[:] = 0.0
-        n, _ = limit_strain(x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, inv_mass, self.layout.place,
-                            self._zero, self._shift, 1.0, self.limited, self.strain_limit, PROJECTION_TOL,
-                            PROJECTION_MAX_ITER, self._xp, x)
+        try:
+            n, _ = limit_strain(x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, inv_mass,
+                                self.layout.place, self._zero, self._shift, 1.0, self.limited, self.strain_limit,
+                                PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp, x)
+        except ValueError as err:  # the projection's banded Cholesky, in a state gone wild
+            self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)
         if n:
             lay = self.layout
             qpos = (lay.qpos_adr[:, None] + np.arange(3)).ravel()

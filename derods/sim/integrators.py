@@ -156,6 +156,21 @@ class Step:
                                 self.gravity, self.h, self.mass_damping, self.stiffness_damping, s.a_band, s.lt,
                                 s.g, s.z, s.den, self.v, self.other, self._rhs, self._kv, self.a0)
 
+    def carried(self) -> list[np.ndarray]:
+        """The arrays this mode carries from one step to the next (beside MuJoCo's state),
+        which a failed step is undone to (:class:`derods.sim.divergence.Guard`)."""
+        fr = self.frames
+        out = [fr.u, fr.t, fr.theta]
+        if self._moving:
+            out.append(fr.theta_end)  # clamps on moving bodies
+        if self.reactions:
+            # What the rods put on their holders: added to qfrc_applied, the last step's removed.
+            out += [self.reactions._applied, self.qfrc_applied]
+        return out
+
+    #: Flags the mode carries from one step to the next, saved with ``carried()``.
+    carried_flags: tuple[str, ...] = ()
+
     def restart(self) -> None:
         """The rods' state was set from outside (World.set_positions, set_velocities):
         forget what the mode carries between steps (nothing, but for generalized-alpha)."""

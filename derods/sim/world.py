@@ -33,11 +33,12 @@ import numpy as np
 
 from .. import frames
 from .._numba.coupling import gather_positions
-from .. import _checks
+from .. import validation
 from ..rod import Rod, RodState, check_turns
 from ..step import Frames, RodSet
 from .clamps import end_bodies, twist_boundary
-from .divergence import Diagnosis
+from .divergence import Diagnosis, Guard
+from .scene_checks import fall_step, starts_inside, stretched, stretched_words, thin_geoms
 from .alpha_step import GeneralizedAlpha
 from .integrators import Explicit, Implicit, Projection, explicit_dt_limit
 from .layout import END_KINDS, PROGRESS_FROM, Layout, RodEntry, add_to_spec
@@ -82,6 +83,9 @@ class ContactParams:
     margin: float = 0.0
     holder_contact: bool = False
 
+    def __post_init__(self):
+        validation.contact_params(self)
+
 
 class World:
     """A MuJoCo scene with DER rods in it.
@@ -108,27 +112,27 @@ class World:
         is projected back onto its rest lengths (see
         :data:`derods.sim.integrators.STRAIN_LIMIT`, the default, 1e-3); ``math.inf``
         turns it off.
+    scene_checks: at compile, warn (:class:`derods.SceneWarning`) of a step too long for
+        the fall or for a thin obstacle, a rod starting inside an obstacle, and a rod
+        held at both ends that starts longer than its rest length
+        (:mod:`derods.sim.scene_checks`); False silences them.
 
     Add rods with :meth:`add_rod`, then :meth:`step`. The MuJoCo model is
     compiled on first use and available as :attr:`model` and :attr:`data`.
+    Inputs derods cannot simulate are refused with a :class:`derods.InvalidInputError`
+    (:mod:`derods.validation`). A step that loses the solution, or that MuJoCo warns
+    about (a NaN written into ``data.qvel`` between steps: MuJoCo would restart the world
+    from its start), raises :class:`derods.DivergenceError` naming the cause, the world
+    put back where the step began (:class:`derods.sim.divergence.Guard`; MuJoCo's
+    automatic reset is off in :attr:`model`).
     """
 
     def __init__(self, scene=None, *, dt: float | None = None, gravity=None, mode: str = "auto",
                  mass_damping: float = 0.0, stiffness_damping: float = 0.0,
                  contact: ContactParams = ContactParams(), integrator: str | None = None,
-                 strain_limit: float | None = None):
-        if mode not in MODES:
-            raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
-        if dt is not None:
-            _checks.positive("dt", dt, "s")
-        _checks.non_negative("mass_damping", mass_damping, "1/s")
-        _checks.non_negative("stiffness_damping", stiffness_damping, "s")
-        if strain_limit is not None and not strain_limit > 0:
-            raise ValueError(f"strain_limit must be > 0 (math.inf: off), got {strain_limit!r}")
-        if gravity is not None:
-            gravity = np.asarray(gravity, dtype=float)
-            if gravity.shape != (3,) or not np.all(np.isfinite(gravity)):
-                raise ValueError(f"gravity must be 3 finite numbers [m/s^2], got {gravity.tolist()!r}")
+                 strain_limit: float | None = None, scene_checks: bool = True):
+        validation.world_options(scene, dt, gravity, mode, mass_damping, stiffness_damping, contact, integrator,
+                                 strain_limit, scene_checks)
         if isinstance(scene, mujoco.MjSpec):
             self.spec = scene
         elif scene is None:
@@ -138,7 +142,7 @@ class World:
             try:
                 self.spec = mujoco.MjSpec.from_file(str(scene))
             except Exception as err:  # MuJoCo raises ValueError with its parser message
-                raise ValueError(f"cannot read MJCF scene {str(scene)!r}: {err}") from None
+                raise validation.InvalidInputError(f"cannot read MJCF scene {str(scene)!r}: {err}") from None
         if integrator is not None:
             self.spec.option.integrator = getattr(mujoco.mjtIntegrator, "mjINT_" + integrator.upper())
         if dt is not None:
@@ -150,11 +154,13 @@ class World:
         self.stiffness_damping = float(stiffness_damping)
         self.contact = contact
         self.strain_limit = strain_limit
+        self.scene_checks = scene_checks
         self.compile_times = None
         self._entries: list[RodEntry] = []
         self._model = None
         self._data = None
         self._step = None
+        self._guard = None
         self.mode = None
         self.explicit_dt_limit = None
 
@@ -175,47 +181,56 @@ class World:
             (through a clamp) its bending and twisting moments.
         """
         if self._model is not None:
-            raise RuntimeError("add rods before the world is compiled (before the first step)")
-        if rod.closed and (start != "free" or end != "free"):
-            raise ValueError("a ring has no ends: leave start and end 'free'")
-        if rod.rest_x.ndim != 2:
-            raise ValueError("add rods to a World one at a time (rest_x of shape (n_vertices, 3))")
+            raise validation.InvalidInputError("add_rod: add rods before the world is compiled (before the first "
+                                               "step, or reading model or data)")
+        validation.instance("rod", rod, Rod, "pass derods.Rod(rest_x, material)")
         for key, val in (("start", start), ("end", end)):
-            if val not in END_KINDS:
-                raise ValueError(f"{key} must be one of {END_KINDS}, got {val!r}")
-        name = name or f"rod{len(self._entries)}"
-        if any(e.name == name for e in self._entries):
-            raise ValueError(f"a rod named {name!r} exists already; pass another name")
-        x0 = rod.rest_x if x is None else np.asarray(x, dtype=float)
+            validation.choice(key, val, END_KINDS)
+        if rod.closed and (start != "free" or end != "free"):
+            raise validation.InvalidInputError(f"start, end: a ring has no ends, got start={start!r}, end={end!r}: "
+                                               "leave them 'free'")
+        if rod.rest_x.ndim != 2:
+            raise validation.InvalidInputError(f"rod: add rods to a World one at a time (rest_x of shape "
+                                               f"(n_vertices, 3)), got rest_x of shape {rod.rest_x.shape}")
+        name = f"rod{len(self._entries)}" if name is None else name
+        scene_names = {b.name for b in self.spec.bodies} | {f.name for f in self.spec.flexes}
+        validation.rod_name(name, {e.name: e.rod.n_vertices for e in self._entries}, scene_names)
+        rgba = validation.rgba("rgba", rgba)
+        x0 = rod.rest_x if x is None else validation.numeric_array("x", x)
         if x0.shape != rod.rest_x.shape:
-            raise ValueError(f"x must have shape {rod.rest_x.shape}, got {x0.shape}")
+            raise validation.InvalidInputError(f"x must have shape {rod.rest_x.shape}, got {x0.shape}")
         if x is not None:
-            _checks.points("x", x0, rod.closed)
+            validation.points("x", x0, rod.closed)
             check_turns("x", x0, rod.closed)
         lightest = float(np.min(rod.vertex_mass))
         if lightest < MIN_VERTEX_MASS:
-            raise ValueError(f"rod {name!r}: its lightest vertex weighs {lightest:.3g} kg, below what MuJoCo integrates "
-                             f"({MIN_VERTEX_MASS:g} kg; radius {rod.material.radius:g} m, density "
-                             f"{rod.material.density:g} kg/m^3, edges {float(np.min(rod.rest_len)):.3g} m): "
-                             "use a larger radius, density or edge length")
+            raise validation.InvalidInputError(
+                f"rod {name!r}: its lightest vertex weighs {lightest:.3g} kg, below what MuJoCo integrates "
+                f"({MIN_VERTEX_MASS:g} kg; radius {rod.material.radius:g} m, density {rod.material.density:g} "
+                f"kg/m^3, edges {float(np.min(rod.rest_len)):.3g} m): use a larger radius, density or edge length")
         for key, body, kind in (("start", start_body, start), ("end", end_body, end)):
             if body is None:
                 continue
+            if not isinstance(body, str):
+                validation.refuse(f"{key}_body", "the name (str) of a body of the scene", body,
+                                  "pass the body's name", validation.InvalidTypeError)
             if kind == "free":
-                raise ValueError(f"{key}_body={body!r} needs {key}='pin' or 'clamp'")
-            if self.spec.body(body) is None:
-                names = [b.name for b in self.spec.bodies if b.name]
-                raise ValueError(f"{key}_body {body!r} is not a body of the scene; bodies: {names}")
+                raise validation.InvalidInputError(f"{key}_body={body!r} needs {key}='pin' or 'clamp'")
+            if self.spec.body(body) is None or body == "world":
+                names = [b.name for b in self.spec.bodies if b.name and b.name != "world"]
+                raise validation.InvalidInputError(f"{key}_body {body!r} is not a body of the scene; bodies: {names}")
         if not rod.closed:
             rod = rod.with_boundary(twist_boundary(rod, start, end, name))
         if self.requested_mode == "projection":
             if rod.closed:
-                raise ValueError("mode='projection' handles open rods only; use mode='implicit' for rings")
+                raise validation.InvalidInputError("mode='projection' handles open rods only; use "
+                                                   "mode='implicit' for rings")
             # Edge lengths are held by projection; a vanishing spring keeps the term's bookkeeping.
             rod = replace(rod, stretch_stiffness=1e-9 * rod.material.stretch_stiffness)
-        entry = RodEntry(name, rod, x0, start, end, start_body, end_body, tuple(rgba))
+        entry = RodEntry(name, rod, x0, start, end, start_body, end_body, rgba)
         if entry.fixed.all():
-            raise ValueError(f"rod '{name}' has every vertex held; give it more edges")
+            # (This wording is also the command line's answer.)
+            raise validation.InvalidInputError(f"rod '{name}' has every vertex held; give it more edges")
         self._entries.append(entry)
         return len(self._entries) - 1
 
@@ -224,7 +239,7 @@ class World:
         if self._model is not None:
             return
         if not self._entries:
-            raise ValueError("the world has no rods; add one with add_rod()")
+            raise validation.InvalidInputError("the world has no rods; add one with add_rod()")
         t0 = time.perf_counter()
         collide = any(g.contype or g.conaffinity for g in self.spec.geoms)
         add_to_spec(self.spec, self._entries, self.contact, collide)
@@ -261,11 +276,12 @@ class World:
                      mujoco.mjtIntegrator.mjINT_IMPLICITFAST)
         if self.mode in ("implicit", "alpha") and model.opt.integrator not in supported:
             name = mujoco.mjtIntegrator(model.opt.integrator).name
-            raise ValueError(
-                f"the implicit rod step needs MuJoCo's Euler, implicit or implicitfast integrator, "
+            raise validation.InvalidInputError(
+                f"integrator: the implicit rod step needs MuJoCo's Euler, implicit or implicitfast integrator, "
                 f"the scene uses {name}; pass integrator='implicitfast' to World"
             )
-        diagnosis = Diagnosis(layout.names, h, self.mode, self.mass_damping)
+        excess = stretched(self._entries)
+        diagnosis = Diagnosis(layout.names, h, self.mode, self.mass_damping, excess)
         self._step = _STEPS[self.mode](model, data, layout, self._entries, rods, fr, ends, self.mass_damping,
                                        self.stiffness_damping, diagnosis)
         if self.strain_limit is not None:
@@ -273,11 +289,34 @@ class World:
         if getattr(self._step, "coupled", None) is not None:
             self._step.coupled.holder_contact = self.contact.holder_contact
         self._model, self._data, self._layout = model, data, layout
+        self._guard = Guard(model, data, layout, self._step, diagnosis)
+        if self.scene_checks:
+            for text in self._scene_report(excess):
+                warnings.warn(text, validation.SceneWarning, stacklevel=3)
         #: Where compile's time went [s]: adding the rods to the spec, MuJoCo's compile
         #: (its body-dof sparsity sorts a row of all nv dofs by insertion: nv^2 / 2 moves,
         #: ~2 s at 96,000 dofs), and the rest (data, layout, rods, the step).
         self.compile_times = {"rods_to_spec": t1 - t0, "mujoco_compile": t2 - t1,
                               "rest": time.perf_counter() - t2}
+
+    def _scene_report(self, excess: dict) -> list:
+        """What :mod:`derods.sim.scene_checks` finds in this compiled world, in words."""
+        m, d = self._model, self._data
+        out = []
+        if any(g.contype or g.conaffinity for g in self.spec.geoms):
+            # Only rods with no end held can fall.
+            free = [e for e in self._entries if e.start == "free" and e.end == "free"]
+            if free:
+                tops = [float(e.x0[:, 2].max()) for e in free]
+                fall = fall_step(m, d, tops, [float(e.rod.length) for e in free])
+                if fall is not None:
+                    out.append(fall)
+                else:
+                    radius = min(e.rod.material.radius for e in free)
+                    out += thin_geoms(m, d, tops, radius)
+            holders = [[m.body(b).id for b in (e.start_body, e.end_body) if b] for e in self._entries]
+            out += starts_inside(m, d, self.rod_names, [e.rod.material.radius for e in self._entries], holders)
+        return out + stretched_words(self._entries, excess)
 
     # -- access --------------------------------------------------------------
     @property
@@ -299,14 +338,7 @@ class World:
         return [e.name for e in self._entries]
 
     def _index(self, rod) -> int:
-        if isinstance(rod, str):
-            for i, e in enumerate(self._entries):
-                if e.name == rod:
-                    return i
-            raise KeyError(f"no rod named {rod!r}; rods: {self.rod_names}")
-        if not -len(self._entries) <= rod < len(self._entries):
-            raise IndexError(f"rod index {rod} out of range; the world has {len(self._entries)} rods")
-        return rod % len(self._entries)
+        return validation.rod_index(rod, self.rod_names)
 
     def positions(self, rod: int | str = 0) -> np.ndarray:
         """Vertex positions [m] of a rod, shape (n_vertices, 3)."""
@@ -340,9 +372,9 @@ class World:
         self.compile()
         i = self._index(rod)
         e, lay, d = self._entries[i], self._layout, self._data
-        x = np.asarray(x, dtype=float)
-        if x.shape != e.x0.shape:
-            raise ValueError(f"x must have shape {e.x0.shape}, got {x.shape}")
+        x = validation.finite_array("x", x, e.x0.shape, "m")
+        validation.points("x", x, e.rod.closed)
+        check_turns("x", x, e.rod.closed)
         places = np.arange(lay.dof_off[i] // 3, lay.dof_off[i + 1] // 3)
         vtx = lay.free_vertex[places]
         for p, v in zip(places, vtx):
@@ -369,9 +401,7 @@ class World:
         self.compile()
         i = self._index(rod)
         lay = self._layout
-        v = np.asarray(v, dtype=float)
-        if v.shape != self._entries[i].x0.shape:
-            raise ValueError(f"v must have shape {self._entries[i].x0.shape}, got {v.shape}")
+        v = validation.finite_array("v", v, self._entries[i].x0.shape, "m/s")
         lo, hi = lay.dof_off[i], lay.dof_off[i + 1]
         self._data.qvel[lay.dofs[lo:hi]] = v[lay.free_vertex[lo // 3:hi // 3] - lay.v_off[i]].ravel()
         self._step.restart()
@@ -389,8 +419,10 @@ class World:
         self.compile()
         i = self._index(rod)
         nv = self._entries[i].rod.n_vertices
+        vertex = validation.integer("vertex", vertex)
         if not -nv <= vertex < nv:
-            raise IndexError(f"vertex {vertex} out of range; rod {self.rod_names[i]!r} has {nv} vertices")
+            raise validation.InvalidIndexError(f"vertex {vertex} out of range; rod {self.rod_names[i]!r} has {nv} "
+                                               "vertices")
         return int(self._layout.body[self._layout.v_off[i] + vertex % nv])
 
     def reaction(self, rod: int | str = 0, end: str = "start") -> tuple[np.ndarray, np.ndarray]:
@@ -402,8 +434,7 @@ class World:
         iterate). An end that is not held gets zeros.
         """
         self.compile()
-        if end not in ("start", "end"):
-            raise ValueError(f"end must be 'start' or 'end', got {end!r}")
+        validation.choice("end", end, ("start", "end"))
         i = self._index(rod)
         e, lay = self._entries[i], self._layout
         held = e.held(end)
@@ -466,8 +497,20 @@ class World:
 
     # -- stepping ------------------------------------------------------------
     def step(self, n_steps: int = 1) -> None:
-        """Advance ``n_steps`` steps of ``model.opt.timestep``."""
+        """Advance ``n_steps`` steps of ``model.opt.timestep``.
+
+        Raises :class:`derods.DivergenceError` if a step loses the solution or MuJoCo
+        would read a NaN or huge value written between steps: the world is then back where
+        that step began (see :class:`derods.sim.divergence.Guard`).
+        """
+        if type(n_steps) is not int or n_steps < 0:
+            n_steps = validation.integer("n_steps", n_steps, ge=0)
         self.compile()
-        step = self._step.step
+        step, guard = self._step.step, self._guard
         for _ in range(n_steps):
-            step()
+            guard.before()
+            try:
+                step()
+            except Exception as err:  # undone, and named if a bad value written between steps caused it
+                guard.failed(err)
+            guard.after()
