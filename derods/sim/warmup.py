@@ -54,6 +54,20 @@ def warm_up() -> None:
                                                                                  radius2=0.005)), "ribbon")
     world.step(3)
     world.contact_force("lying")
+    # Rods held by bodies with dofs (derods.sim.coupled): a slide cart holding a rod that
+    # lies on the floor (the bordered contact solve) and a hinged arm (arcs, differences).
+    spec = mujoco.MjSpec.from_string(
+        '<mujoco><worldbody><geom type="plane" size="2 2 0.1"/>'
+        '<body name="warmup_cart" pos="0 0 0.012"><joint type="slide" axis="1 0 0"/>'
+        '<geom type="box" size="0.01 0.01 0.01" contype="0" conaffinity="0"/></body>'
+        '<body name="warmup_arm" pos="0 1 0.5"><joint type="hinge" axis="0 1 0" pos="0 0 0.1"/>'
+        '<geom type="sphere" size="0.01" contype="0" conaffinity="0"/></body></worldbody></mujoco>')
+    held = World(spec, dt=1e-2)
+    held.add_rod(Rod(shapes.straight(0.3, 6, start=(0.0, 0.0, 0.0099), direction=(-1.0, 0.0, 0.0)), mat), "dragged",
+                 start="pin", start_body="warmup_cart")
+    held.add_rod(Rod(shapes.straight(0.3, 6, start=(0.0, 1.0, 0.5), direction=(0.0, 0.0, -1.0)), mat), "hanging",
+                 start="clamp", start_body="warmup_arm")
+    held.step(3)
     for mode in ("explicit", "projection"):
         w = World(dt=1e-5 if mode == "explicit" else 1e-2, mode=mode)
         w.add_rod(Rod(shapes.cantilever(0.3, 6), mat), start="clamp")
