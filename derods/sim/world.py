@@ -226,7 +226,12 @@ class World:
                 raise validation.InvalidInputError("mode='projection' handles open rods only; use "
                                                    "mode='implicit' for rings")
             # Edge lengths are held by projection; a vanishing spring keeps the term's bookkeeping.
-            rod = replace(rod, stretch_stiffness=1e-9 * rod.material.stretch_stiffness)
+            # A rod held by a body with dofs keeps its spring: the coupled solve moves rod and
+            # holder together through it (derods.sim.coupled), the projection follows; with
+            # the lengths left to the projection alone the holder felt the rod a step late
+            # and light or stiff holders diverged at dt 1e-2.
+            if not any(_has_dofs(self.spec, b) for b in (start_body, end_body) if b is not None):
+                rod = replace(rod, stretch_stiffness=1e-9 * rod.material.stretch_stiffness)
         entry = RodEntry(name, rod, x0, start, end, start_body, end_body, rgba)
         if entry.fixed.all():
             # (This wording is also the command line's answer.)
@@ -514,3 +519,13 @@ class World:
             except Exception as err:  # undone, and named if a bad value written between steps caused it
                 guard.failed(err)
             guard.after()
+
+
+def _has_dofs(spec: mujoco.MjSpec, name: str) -> bool:
+    """Whether the scene body ``name`` moves by joints of its own or of its ancestors."""
+    body = spec.body(name)
+    while body is not None and body.name != "world":
+        if len(body.joints):
+            return True
+        body = body.parent
+    return False
