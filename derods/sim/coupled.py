@@ -27,11 +27,14 @@ keep MuJoCo's impedance in this metric (D = 1 / (R / diagA * diag(J H^-1 J^T))).
 holders' trees get the acceleration found, written as the force that makes MuJoCo's
 integrator reproduce it (:mod:`derods.sim.trees`), and so do the touching trees.
 
-Three details keep it well posed. A held edge's contact with its own holder takes no
+Four details keep it well posed. A held edge's contact with its own holder takes no
 force (MuJoCo excludes a body's parent and children, but not for flex elements). The
-holders' Schur complement is kept at least their inertia (:func:`definite`). And the
-strain limit runs once, after the solve, with the held vertices where MuJoCo's
-integrator takes their bodies (:meth:`CoupledStep._limit_strain`).
+holders' Schur complement is kept at least their inertia (:func:`definite`). The held
+points move on the arcs their turning bodies take, not along the tangent J dq the linear
+solve knows: the difference is a known motion of theirs in the solve
+(:meth:`CoupledStep._arc`). And the strain limit runs once, after the solve, with the
+held vertices where MuJoCo's integrator takes their bodies
+(:meth:`CoupledStep._limit_strain`).
 """
 
 from __future__ import annotations
