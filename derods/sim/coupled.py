@@ -44,7 +44,7 @@ import numpy as np
 
 from .._numba import contact as _k
 from .._numba.contact_newton import Border, newton
-from .._numba.contact_rows import efc_triplets, far_rows_csr, split_bordered_rows, transpose_apply_all
+from .._numba.contact_rows import bordered_rows, transpose_apply_all
 from .._numba.dense import lu_factor, lu_solve, spd_factor
 from .._numba.implicit import sm_solve_into
 from .contact import MAX_ITER, SUPPORTED, TOL, WINDOW, ContactStep, WithTrees
@@ -79,6 +79,7 @@ class CoupledStep:
         self.holder_contact = False
         self._elem_holder = _element_holders(model, layout, holders.bodies)
         self._qvel = np.zeros(model.nv)
+        self._no_rows = np.zeros(0, dtype=np.bool_)
         #: Whether a held point can turn (a rotational dof moves it): then it moves on arcs.
         self._turning = bool(np.any([rotational(model, int(j)) for j in holders.dofs]))
         self._aq_last = np.zeros(self.m)
@@ -117,17 +118,11 @@ class CoupledStep:
         ext_sys = WithTrees(m, d, sysm, self.contact, trees, step.a0)
         nn = ext_sys.n
         if d.nefc:
-            row, col, val = efc_triplets(self.is_sparse, d.nefc, m.nv, d.efc_J, d.efc_J_rownnz, d.efc_J_rowadr,
-                                         d.efc_J_colind)
-            types = d.efc_type[:d.nefc]
-            supported = (types == SUPPORTED[0]) | (types == SUPPORTED[1])
-            efc_force = d.efc_force[:d.nefc]
-            own = self._own_holder_rows(d)
-            if own is not None:  # neither solved nor MuJoCo's: no force at all
-                supported &= ~own
-                efc_force = np.where(own, 0.0, efc_force)
-            efc, kb, col0, jw, jf, jq, ext, ext_q = split_bordered_rows(
-                row, col, val, ext_sys.local_of_dof, self.border_of_dof, supported, efc_force, nn, mq, WINDOW)
+            own = self._own_holder_rows(d)  # neither solved nor MuJoCo's: no force at all
+            efc, kb, col0, jw, jf, jq, ext, ext_q, fptr, fcol, fval = bordered_rows(
+                self.is_sparse, d.nefc, m.nv, d.efc_J, d.efc_J_rownnz, d.efc_J_rowadr, d.efc_J_colind, d.efc_type,
+                SUPPORTED, self._no_rows if own is None else own, d.efc_force, ext_sys.local_of_dof,
+                self.border_of_dof, nn, mq, WINDOW)
         else:
             efc, ext, ext_q = np.zeros(0, np.int64), np.zeros(nn), np.zeros(mq)
         start = ext_sys.a0.copy()
@@ -152,7 +147,6 @@ class CoupledStep:
         self.contact.force[:] = 0.0
         newton_args = None
         if len(efc):
-            fptr, fcol, fval = far_rows_csr(jf)
             h_fq = np.zeros((nn, mq))
             h_fq[:n, c] = s * k_f
             big_y = np.zeros((nn, mq))
