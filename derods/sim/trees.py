@@ -97,7 +97,12 @@ class TreeDynamics:
 
     def metric(self, m: mujoco.MjModel, d: mujoco.MjData, dofs: np.ndarray) -> np.ndarray:
         """M - h D on dofs: the matrix MuJoCo's integrator solves with."""
-        return self.mass(m, d, dofs) - m.opt.timestep * self.damping(m, d, dofs)
+        out = self.mass(m, d, dofs)
+        if not self.implicit:  # Euler's: D is minus the joint damping, on the diagonal
+            if not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_EULERDAMP:
+                out[np.diag_indices(len(dofs))] += m.opt.timestep * m.dof_damping[dofs]
+            return out
+        return out - m.opt.timestep * self.damping(m, d, dofs)
 
     @staticmethod
     def write(d: mujoco.MjData, dofs: np.ndarray, metric: np.ndarray, qacc: np.ndarray) -> None:
