@@ -297,21 +297,11 @@ class Implicit(Step):
         rod that cannot be, held taut between pins, keeps its step)."""
         if not self.limited.any() or math.isinf(self.strain_limit):
             return 0
-        held_x = self.x if held_x is None else held_x
+        inv_mass = self.inv_mass if inv_mass is None else inv_mass
         try:
-            n, left = limit_strain(self.x, self.rods.v_off, self.rods.e_off, self.rods.rest_len,
-                                   self.inv_mass if inv_mass is None else inv_mass, self.layout.place, self.v, a,
-                                   self.h, self.limited, self.strain_limit, PROJECTION_TOL, PROJECTION_MAX_ITER,
-                                   self._xp, held_x)
-            if left and inv_mass is not None:
-                # Weighted (vertices a contact pushes on made heavier), the projection can
-                # fail to converge (a cable dragged at dt 1e-2 in the projection mode:
-                # the rod kept its step, 28 % strain, and diverged); with the vertices'
-                # own masses it reaches the rods it left.
-                n2, _ = limit_strain(self.x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, self.inv_mass,
-                                     self.layout.place, self.v, a, self.h, self.limited, self.strain_limit,
-                                     PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp, held_x)
-                n += n2
+            n, _ = limit_strain(self.x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, inv_mass,
+                                self.layout.place, self.v, a, self.h, self.limited, self.strain_limit,
+                                PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp, self.x if held_x is None else held_x)
         except ValueError as err:  # the projection's banded Cholesky, in a state gone wild
             self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)
         return n
