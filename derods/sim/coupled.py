@@ -136,7 +136,8 @@ class CoupledStep:
         y0 = start[:n] - (b + h) / s * (y @ v_q)
         schur = h_qq.copy()
         schur[cc] -= s * (k_f.T @ y)
-        fix = definite(schur, metric)
+        # (slide-only holders have the Gauss-Newton K_qq = J^T K_hh J: S >= M by construction)
+        fix = None if hl._slides_only else definite(schur, metric)
         if fix is not None:
             schur += fix
             h_qq += fix
