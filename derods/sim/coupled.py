@@ -148,10 +148,13 @@ class CoupledStep:
         self.contact.force[:] = 0.0
         newton_args = None
         if len(efc):
-            h_fq = np.zeros((nn, mq))
-            h_fq[:n, c] = s * k_f
-            big_y = np.zeros((nn, mq))
-            big_y[:n, c] = y
+            if nn == n and self._whole_tree:  # no touching trees; the held dofs are the trees'
+                h_fq, big_y = s * k_f, np.ascontiguousarray(y)
+            else:
+                h_fq = np.zeros((nn, mq))
+                h_fq[:n, c] = s * k_f
+                big_y = np.zeros((nn, mq))
+                big_y[:n, c] = y
             # MuJoCo's impedance kept in this metric (see the module docstring)
             weights = _k.bordered_weights(ext_sys.lt, ext_sys.g, sysm.tw_lo, sysm.tw_hi, sysm.tw_c, s, ext_sys.z,
                                           sysm.den, col0, jw, fptr, fcol, fval, big_y, np.ascontiguousarray(jq),
