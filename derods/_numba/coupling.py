@@ -92,3 +92,13 @@ def free_band_into(bands, first, dof_off, band):
         for d in range(rows):
             for j in range(nf - d):
                 band[d, c0 + j] = bands[i, d, a + j]
+
+
+@nb.njit(cache=True)
+def gather_into(bands, band, d, j, row, col, out):
+    """out (zeroed first) <- bands[band[p], d[p], j[p]] at (row[p], col[p]) for every p: the
+    blocks of symmetric matrices kept as lower bands, placed as
+    :func:`derods.sim.holders.band_entries` indexed them."""
+    out[:] = 0.0
+    for p in range(len(band)):
+        out[row[p], col[p]] = bands[band[p], d[p], j[p]]

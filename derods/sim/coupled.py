@@ -70,6 +70,7 @@ class CoupledStep:
         self.model, self.layout = model, layout
         self.holders, self.contact = holders, contact
         self.m = len(holders.tree)
+        self.nv = model.nv
         self.border_of_dof = np.full(model.nv, -1, dtype=np.int64)
         self.border_of_dof[holders.tree] = np.arange(self.m)
         self.is_sparse = bool(mujoco.mj_isSparse(model))
@@ -120,7 +121,7 @@ class CoupledStep:
         if d.nefc:
             own = self._own_holder_rows(d)  # neither solved nor MuJoCo's: no force at all
             efc, kb, col0, jw, jf, jq, ext, ext_q, fptr, fcol, fval = bordered_rows(
-                self.is_sparse, d.nefc, m.nv, d.efc_J, d.efc_J_rownnz, d.efc_J_rowadr, d.efc_J_colind, d.efc_type,
+                self.is_sparse, d.nefc, self.nv, d.efc_J, d.efc_J_rownnz, d.efc_J_rowadr, d.efc_J_colind, d.efc_type,
                 SUPPORTED, self._no_rows if own is None else own, d.efc_force, ext_sys.local_of_dof,
                 self.border_of_dof, nn, mq, WINDOW)
         else:
@@ -131,7 +132,7 @@ class CoupledStep:
             sm_solve_into(ext_sys.lt, ext_sys.g, sysm.tw_lo, sysm.tw_hi, sysm.tw_c, s, ext_sys.z, sysm.den, e)
             start += e
         # The coupled unconstrained solution a* (holders.py's Schur complement on A).
-        v_q = d.qvel[hl.dofs]
+        v_q = step.qvel[hl.dofs]
         y = sysm.solve(s * k_f)  # A^-1 s K_fq, (n, k)
         y0 = start[:n] - (b + h) / s * (y @ v_q)
         schur = h_qq.copy()
@@ -141,7 +142,7 @@ class CoupledStep:
         if fix is not None:
             schur += fix
             h_qq += fix
-        force = d.qfrc_smooth[hl.tree] + ext_q
+        force = step.qfrc_smooth[hl.tree] + ext_q
         force[c] -= (b + h) * (k_f.T @ step.v + k_q @ v_q) + s * (k_f.T @ y0)
         lu, piv = schur.copy(), np.zeros(mq, dtype=np.int64)  # S's factors, for every solve below
         lu_factor(lu, piv)
@@ -223,7 +224,7 @@ class CoupledStep:
         hl, h = self.holders, step.h
         self.held_x[:] = step.x
         if not self._turning and self._held_are_riding:
-            v_q = step.data.qvel[hl.dofs] + h * aq[hl._in_tree]
+            v_q = step.qvel[hl.dofs] + h * aq[hl._in_tree]
             self.held_x[hl.held] += (jac @ (h * v_q)).reshape(-1, 3)
         elif len(self._riding_vertex):
             self._predict_held(step, aq)

@@ -52,7 +52,7 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
-from .._numba.coupling import free_band_into, gather_positions
+from .._numba.coupling import free_band_into, gather_into, gather_positions
 from ..stencil import ring_order
 from ..step import Terms, evaluate
 from .trees import TreeDynamics, tree_dofs, trees_of
@@ -136,9 +136,8 @@ def band_entries(pairs, band_rows: int) -> tuple[np.ndarray, ...]:
 def gather(bands: np.ndarray, entries: tuple[np.ndarray, ...], shape: tuple[int, int]) -> np.ndarray:
     """The dense matrix of ``shape`` with the bands' (n_bands, rows, n) entries placed by
     :func:`band_entries`' index arrays."""
-    band, d, j, row, col = entries
-    out = np.zeros(shape)
-    out[row, col] = bands[band, d, j]
+    out = np.empty(shape)
+    gather_into(bands, *entries, out)
     return out
 
 
