@@ -112,8 +112,11 @@ class CoupledStep:
         k_f, k_q = stiff.k_f, stiff.k_q
         metric = hl._dynamics.metric(m, d, hl.tree)
         cc = slice(None) if self._whole_tree else np.ix_(c, c)  # the held-dof block of the tree's
-        h_qq = metric.copy()
-        h_qq[cc] += s * k_q
+        if self._whole_tree:
+            h_qq = metric + s * k_q
+        else:
+            h_qq = metric.copy()
+            h_qq[cc] += s * k_q
         # The rods' system, extended by the trees the rows bind to rods this step.
         trees = self.contact._touching_trees(d) if (self.contact.bodies and d.nefc) else np.zeros(0, np.int64)
         ext_sys = WithTrees(m, d, sysm, self.contact, trees, step.a0)

@@ -100,7 +100,7 @@ class TreeDynamics:
         out = self.mass(m, d, dofs)
         if not self.implicit:  # Euler's: D is minus the joint damping, on the diagonal
             if not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_EULERDAMP:
-                out[np.diag_indices(len(dofs))] += m.opt.timestep * m.dof_damping[dofs]
+                out.flat[::len(dofs) + 1] += m.opt.timestep * m.dof_damping[dofs]
             return out
         return out - m.opt.timestep * self.damping(m, d, dofs)
 
