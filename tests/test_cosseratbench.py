@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -93,6 +94,17 @@ def test_contact_takes_the_largest_friction_and_is_frictionless_without_any():
     assert adapter.contact_params(cylinder_only, 1e-3).condim == 3  # the cylinder's own friction
     bare = Scenario(rods=(_rod(), _rod()), duration=1.0)
     assert adapter.contact_params(bare, 1e-3).condim == 1
+
+
+def test_each_rod_keeps_its_own_friction():
+    """Rods of different coefficients: each rod's flex carries its own, so MuJoCo's rule
+    (the larger of the two things touching) is the suite's, pair by pair."""
+    scenario = Scenario(rods=(_rod(friction=0.2), _rod(friction=0.5,
+                                                       centerline=((0.0, 0.1, 0.0), (1.0, 0.1, 0.0)))),
+                        duration=0.01, obstacles=(Plane((0, 0, -1), (0, 0, 1), friction=0.1),))
+    model = adapter.DerodsSolver().build(scenario, n_elements=4, n_frames=2).world.model
+    flexes = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_FLEX, f"r{i}") for i in range(2)]
+    assert model.flex_friction[flexes, 0].tolist() == [0.2, 0.5]
 
 
 @pytest.mark.parametrize("duration, n_frames", [(10.0, 101), (2.0, 101), (16.0, 321), (1.0, 2), (4.4321, 201)])

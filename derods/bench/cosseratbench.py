@@ -152,10 +152,10 @@ def _z_to(normal: np.ndarray) -> np.ndarray:
 
 
 def contact_params(scenario: Scenario, dt: float) -> ContactParams:
-    """Contact for every rod of a scenario: the rods' largest friction coefficient (rod
-    on rod; against an obstacle MuJoCo takes the larger of the obstacle's and this),
-    frictionless rows where nothing has friction, self-contact where a rod can reach
-    itself."""
+    """Contact for every rod of a scenario: frictionless rows where nothing has
+    friction, self-contact where a rod can reach itself. (Each rod's own coefficient is
+    set on its flex once built: MuJoCo takes the larger of the two things touching,
+    the suite's rule.)"""
     friction = max([r.friction for r in scenario.rods] + [0.0])
     any_friction = friction > 0 or any(o.friction > 0 for o in scenario.obstacles)
     return ContactParams(friction=friction, condim=3 if any_friction else 1,
@@ -209,13 +209,14 @@ class DerodsSolver:
         }
 
     # -- the run -------------------------------------------------------------
-    def run(self, scenario: Scenario, *, n_elements: int, n_frames: int) -> Trajectory:
-        dt, per_frame = self._steps(scenario, n_frames)
+    def build(self, scenario: Scenario, *, n_elements: int, n_frames: int) -> Built:
+        """The compiled derods world of a scenario, ready to step (see :class:`Built`)."""
+        dt, _ = self._steps(scenario, n_frames)
         spec = mujoco.MjSpec()
         spec.option.cone = CONE
         for obstacle in scenario.obstacles:
             _add_obstacle(spec, obstacle)
-        world_rods, driven, loads = [], [], []
+        entries, driven = [], []
         for i, rod in enumerate(scenario.rods):
             disc = Discretization.of(rod, n_elements)
             holders = {}
@@ -228,36 +229,31 @@ class DerodsSolver:
                                             rod.material.density * rod.area * rod.length / n_elements)
                 holders[end] = holder
                 driven.append((mocap, point, motion))
-            world_rods.append((rod, disc, holders))
-            for load in rod.loads:
-                loads.append((i, load))
-
+            entries.append((rod, disc, holders))
         world = World(spec, dt=dt, gravity=scenario.gravity, mode=MODE, integrator=INTEGRATOR,
                       mass_damping=self._damping(scenario), contact=contact_params(scenario, dt))
-        for i, (rod, disc, holders) in enumerate(world_rods):
+        for i, (rod, disc, holders) in enumerate(entries):
             world.add_rod(_derods_rod(rod, disc), f"r{i}", x=disc.x0,
                           start=_ENDS[rod.start], end=_ENDS[rod.end],
                           start_body=holders.get(End.START), end_body=holders.get(End.END))
-        model, data = world.model, world.data
+        model = world.model
+        for i, (rod, _, _) in enumerate(entries):
+            # Each rod's own coefficient: MuJoCo takes the larger of the two things touching.
+            model.flex_friction[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_FLEX, f"r{i}"), 0] = rod.friction
+            for load in rod.loads:
+                _apply_load(world, i, entries[i], load)
         mocaps = [(int(model.body(name).mocapid[0]), point, motion) for name, point, motion in driven]
-        for i, load in loads:
-            _apply_load(world, i, world_rods[i], load)
+        return Built(world, tuple(disc for _, disc, _ in entries), tuple(mocaps))
 
-        def frame():
-            out_x, out_d = [], []
-            for i, (_, disc, _) in enumerate(world_rods):
-                state = world.rod_state(i)
-                m1, _ = derods.frames.material_frames(state.u, state.t, state.theta)
-                nodes = disc.nodes(world.positions(i))
-                out_x.append(nodes)
-                out_d.append(disc.directors(nodes, m1))
-            return out_x, out_d
-
-        x, d = frame()
+    def run(self, scenario: Scenario, *, n_elements: int, n_frames: int) -> Trajectory:
+        dt, per_frame = self._steps(scenario, n_frames)
+        built = self.build(scenario, n_elements=n_elements, n_frames=n_frames)
+        world, data = built.world, built.world.data
+        x, d = built.frame()
         xs, ds = [[p] for p in x], [[q] for q in d]
         for f in range(n_frames - 1):
             for _ in range(per_frame):
-                for mocap, point, motion in mocaps:
+                for mocap, point, motion in built.mocaps:
                     displacement, rotation = motion.pose(data.time + dt)
                     data.mocap_pos[mocap] = point + displacement
                     data.mocap_quat[mocap] = _quat(rotation)
@@ -265,13 +261,35 @@ class DerodsSolver:
                     world.step()
                 except DivergenceError as err:
                     raise Diverged(str(err), time=float(data.time)) from None
-            x, d = frame()
+            x, d = built.frame()
             for history, p in zip(xs, x):
                 history.append(p)
             for history, q in zip(ds, d):
                 history.append(q)
         return Trajectory(np.linspace(0.0, scenario.duration, n_frames),
                           tuple(np.stack(h) for h in xs), tuple(np.stack(h) for h in ds))
+
+
+@dataclass(frozen=True)
+class Built:
+    """A scenario as a derods world: the :class:`derods.World` (rod i named ``f"r{i}"``),
+    each rod's :class:`Discretization`, and the driven clamps as (MuJoCo mocap id, the
+    end's starting point [m], its :class:`cosseratbench.Motion`)."""
+
+    world: World
+    discretizations: tuple
+    mocaps: tuple
+
+    def frame(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """Each rod's nodes [m], shape (n + 1, 3), and element directors, shape (n, 3), now."""
+        nodes, directors = [], []
+        for i, disc in enumerate(self.discretizations):
+            state = self.world.rod_state(i)
+            m1, _ = derods.frames.material_frames(state.u, state.t, state.theta)
+            x = disc.nodes(self.world.positions(i))
+            nodes.append(x)
+            directors.append(disc.directors(x, m1))
+        return nodes, directors
 
 
 def _derods_rod(rod: Rod, disc: Discretization) -> derods.Rod:
