@@ -87,13 +87,23 @@ def test_contact_takes_the_largest_friction_and_is_frictionless_without_any():
     rope = _rod(friction=0.2)
     with_floor = Scenario(rods=(rope, _rod(friction=0.4)), duration=1.0,
                           obstacles=(Plane((0, 0, 0), (0, 0, 1), friction=0.1),), self_contact=False)
-    contact = adapter.contact_params(with_floor, 1e-3)
+    contact = adapter.contact_params(with_floor, 1e-3, 10)
     assert (contact.friction, contact.condim, contact.self_collision) == (0.4, 3, False)
     cylinder_only = Scenario(rods=(_rod(),), duration=1.0,
                              obstacles=(Cylinder((0, 0, 0), (0, 1, 0), 0.05, 0.1, friction=0.3),))
-    assert adapter.contact_params(cylinder_only, 1e-3).condim == 3  # the cylinder's own friction
+    assert adapter.contact_params(cylinder_only, 1e-3, 10).condim == 3  # the cylinder's own friction
     bare = Scenario(rods=(_rod(), _rod()), duration=1.0)
-    assert adapter.contact_params(bare, 1e-3).condim == 1
+    assert adapter.contact_params(bare, 1e-3, 10).condim == 1
+
+
+def test_self_contact_needs_edges_a_diameter_long():
+    """MuJoCo's flex leaves only adjacent edges out of self-collision: edges shorter than
+    the rod's diameter would touch their neighbours' neighbours at rest, so such a rod
+    does not collide with itself (it still collides with other rods)."""
+    scenario = Scenario(rods=(_rod(),), duration=1.0, self_contact=True)  # L = 1 m, r = 1 cm
+    assert adapter.self_contact(scenario, 50) and not adapter.self_contact(scenario, 51)
+    assert not adapter.self_contact(replace(scenario, self_contact=False), 10)
+    assert adapter.contact_params(scenario, 1e-3, 100).rod_rod
 
 
 def test_each_rod_keeps_its_own_friction():

@@ -151,16 +151,28 @@ def _z_to(normal: np.ndarray) -> np.ndarray:
     return q
 
 
-def contact_params(scenario: Scenario, dt: float) -> ContactParams:
+def self_contact(scenario: Scenario, n_elements: int) -> bool:
+    """Whether the rods collide with themselves: where the scenario says they can reach
+    themselves, and every rod's edges are at least a diameter long. MuJoCo's flex leaves
+    out only adjacent edges (sharing a vertex) from self-collision; edges two apart, one
+    edge length from each other, would touch at rest on a rod discretized finer than its
+    thickness (twist at n = 100: edges 1 cm, radius 1 cm, the rest shape pushed apart at
+    the first step)."""
+    if not scenario.self_contact:
+        return False
+    return all(rod.length / n_elements >= 2.0 * rod.radius for rod in scenario.rods)
+
+
+def contact_params(scenario: Scenario, dt: float, n_elements: int) -> ContactParams:
     """Contact for every rod of a scenario: frictionless rows where nothing has
-    friction, self-contact where a rod can reach itself. (Each rod's own coefficient is
+    friction, self-contact as :func:`self_contact` says. (Each rod's own coefficient is
     set on its flex once built: MuJoCo takes the larger of the two things touching,
     the suite's rule.)"""
     friction = max([r.friction for r in scenario.rods] + [0.0])
     any_friction = friction > 0 or any(o.friction > 0 for o in scenario.obstacles)
     return ContactParams(friction=friction, condim=3 if any_friction else 1,
                          solref=(CONTACT_TIME_STEPS * dt, 1.0), solimp=CONTACT_SOLIMP,
-                         self_collision=scenario.self_contact, rod_rod=True,
+                         self_collision=self_contact(scenario, n_elements), rod_rod=True,
                          margin=CONTACT_MARGIN_RADII * min(r.radius for r in scenario.rods))
 
 
@@ -193,7 +205,7 @@ class DerodsSolver:
     def settings(self, scenario: Scenario, *, n_elements: int, n_frames: int) -> dict:
         """The numerical choices made for a scenario, as JSON values."""
         dt, _ = self._steps(scenario, n_frames)
-        contact = contact_params(scenario, dt)
+        contact = contact_params(scenario, dt, n_elements)
         return {
             "mode": MODE,
             "time_step": dt,
@@ -205,7 +217,7 @@ class DerodsSolver:
             "contact_solref": list(contact.solref),
             "contact_solimp": list(contact.solimp),
             "contact_margin": contact.margin,
-            "self_contact": bool(scenario.self_contact),
+            "self_contact": contact.self_collision,
         }
 
     # -- the run -------------------------------------------------------------
@@ -231,7 +243,7 @@ class DerodsSolver:
                 driven.append((mocap, point, motion))
             entries.append((rod, disc, holders))
         world = World(spec, dt=dt, gravity=scenario.gravity, mode=MODE, integrator=INTEGRATOR,
-                      mass_damping=self._damping(scenario), contact=contact_params(scenario, dt))
+                      mass_damping=self._damping(scenario), contact=contact_params(scenario, dt, n_elements))
         for i, (rod, disc, holders) in enumerate(entries):
             world.add_rod(_derods_rod(rod, disc), f"r{i}", x=disc.x0,
                           start=_ENDS[rod.start], end=_ENDS[rod.end],
