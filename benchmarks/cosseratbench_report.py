@@ -125,16 +125,22 @@ def experiment_tables(runs: list[dict]) -> list[str]:
 
 
 def settings_lines(runs: list[dict]) -> list[str]:
+    """Each solver's version and settings: one value where every run used it, "per
+    scenario" where the adapter's rule gave different values (time steps, damping)."""
     lines = []
     for solver in sorted({r["solver"] for r in runs}, key=_order):
-        found = [r for r in runs if r["solver"] == solver and r.get("settings")]
-        versions = sorted({str(r["provenance"].get("solver_version")) for r in runs if r["solver"] == solver})
+        mine = [r for r in runs if r["solver"] == solver]
+        versions = sorted({str(r["provenance"].get("solver_version")) for r in mine})
         lines.append(f"- **{solver}** ({', '.join(versions)})")
-        if found:
-            sample = dict(found[0]["settings"])
-            sample.pop("time_step", None)
-            lines.append("  - settings (every experiment; time steps in the tables): "
-                         + ", ".join(f"{k} = {v}" for k, v in sample.items()))
+        found = [r["settings"] for r in mine if r.get("settings")]
+        if not found:
+            continue
+        keys = list(dict.fromkeys(k for settings in found for k in settings))
+        shown = []
+        for key in keys:
+            values = {json.dumps(settings.get(key)) for settings in found}
+            shown.append(f"{key} = {found[0].get(key)}" if len(values) == 1 else f"{key}: per scenario")
+        lines.append("  - " + ", ".join(shown))
     return lines
 
 
