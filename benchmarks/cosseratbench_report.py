@@ -144,7 +144,7 @@ def settings_lines(runs: list[dict]) -> list[str]:
     return lines
 
 
-def render(runs: list[dict], results: Path) -> str:
+def render(runs: list[dict], results: Path, note: str = "") -> str:
     jobs = sorted({r.get("jobs", 1) for r in runs})
     lines = [
         "## cosseratbench: derods beside MuJoCo's cable, PyElastica and DisMech",
@@ -158,6 +158,7 @@ def render(runs: list[dict], results: Path) -> str:
         f"at a time (runs at once: {', '.join(map(str, jobs))}). Wall times are the suite's: one run after",
         "a warm-up, on a shared 2-core VM. DisMech's adapter needs dismech-python, which is not on the",
         "package registry, so it is not run here.",
+        *(["", note] if note else []),
         "",
         "### Summary at each experiment's default resolution",
         "",
@@ -193,11 +194,12 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--results", type=Path, default=ROOT / "results" / "cosseratbench")
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "report" / "cosseratbench.md")
+    parser.add_argument("--note", default="", help="a paragraph on how this session's runs were made, if not as above")
     args = parser.parse_args(argv)
     runs = load(args.results)
     if not runs:
         parser.exit(2, f"no cosseratbench results under {args.results}; run `make cosseratbench`\n")
-    write_atomically(args.out, render(runs, args.results.resolve()))
+    write_atomically(args.out, render(runs, args.results.resolve(), args.note))
     print(f"wrote {args.out} ({len(runs)} runs)")
 
 
