@@ -31,8 +31,10 @@ between derods' vertices (exactly the vertices where no end is clamped).
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -63,6 +65,16 @@ CONTACT_SOLIMP = (0.9, 0.95, 0.001, 0.5, 2.0)
 CONTACT_MARGIN_RADII = 0.0
 
 _ENDS = {EndCondition.FREE: "free", EndCondition.PINNED: "pin", EndCondition.CLAMPED: "clamp"}
+
+
+def _source_digest() -> str:
+    """A short digest of derods' Python sources: the suite reuses a saved run while the
+    solver's version is unchanged, and derods' physics changes between its releases."""
+    root = Path(derods.__file__).parent
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        digest.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()[:12]
 
 
 @dataclass(frozen=True)
@@ -180,7 +192,7 @@ class DerodsSolver:
     """cosseratbench's solver protocol for derods (``cosseratbench.Solver``)."""
 
     name = "derods"
-    backend_version = f"derods {derods.__version__}, mujoco {mujoco.__version__}"
+    backend_version = f"derods {derods.__version__}+{_source_digest()}, mujoco {mujoco.__version__}"
     # Rods stretch (E A), touch each other and themselves with friction, and touch any
     # MuJoCo geom; they do not shear.
     capabilities = frozenset({Capability.STRETCH, Capability.ROD_CONTACT, Capability.ROD_FRICTION,
