@@ -14,7 +14,7 @@ flex contacts is an approximation 5.6x lower (12,490), so derods' rows come out 
 softer than MuJoCo's. With the impedance raised to 0.9999 the creep falls only to
 3.3-3.8 mm/s (solref 2-5 ms), and there the friction cone is the cause: of each
 contact's four pyramidal rows (n +- mu t1, n +- mu t2, t2 along the slope) the pair
-across the slope carries a third of the normal force (their rows see the same
+across the slope carries two fifths of the normal force (their rows see the same
 penetration) and no friction along it, and the uphill edge of the other pair is
 inactive, so friction along the slope tops out at |f_t| / f_n = 0.176 = tan(10 deg)
 against mu = 0.3 and the rope slides at that balance. An elliptic cone, whose friction
