@@ -10,13 +10,13 @@ STAMP317 := $(VENV317)/.installed
 VENVEL := .venv-elastica
 STAMPEL := $(VENVEL)/.installed
 
-.PHONY: demo core-demo test test317 test-elastica venv317 venv-elastica bench report docs-images docs-editor clean clean-cache
+.PHONY: demo core-demo test test317 test-elastica venv317 venv-elastica bench report cosseratbench docs-images docs-editor clean clean-cache
 
 $(STAMP): pyproject.toml
 	@echo "make: creating $(VENV) and installing derods with numpy, scipy, mujoco, numba (a minute or two)"
 	$(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/python -m pip install --quiet --upgrade pip
-	$(VENV)/bin/python -m pip install --progress-bar off -e '.[dev,ui]'
+	$(VENV)/bin/python -m pip install --progress-bar off -e '.[dev,ui,cosseratbench]'
 	@echo "make: compiling derods' kernels once (about a minute of CPU; later runs load them in a second)"
 	$(VENV)/bin/python -c "from derods.sim import warmup; warmup.prepare()"
 	touch $(STAMP)
@@ -39,7 +39,7 @@ $(STAMP317): pyproject.toml
 	@echo "make: creating $(VENV317) with mujoco 3.17.0 (the cable plugin) and derods"
 	$(PYTHON) -m venv $(VENV317)
 	$(VENV317)/bin/python -m pip install --quiet --upgrade pip
-	$(VENV317)/bin/python -m pip install --progress-bar off "mujoco==3.17.0" -e '.[dev]'
+	$(VENV317)/bin/python -m pip install --progress-bar off "mujoco==3.17.0" -e '.[dev,cosseratbench]'
 	touch $(STAMP317)
 
 venv317: $(STAMP317)
@@ -48,7 +48,7 @@ $(STAMPEL): pyproject.toml
 	@echo "make: creating $(VENVEL) with pyelastica 1.0.0 and derods (PyElastica compiles ~1 min of numba on first use)"
 	$(PYTHON) -m venv $(VENVEL)
 	$(VENVEL)/bin/python -m pip install --quiet --upgrade pip
-	$(VENVEL)/bin/python -m pip install --progress-bar off "pyelastica==1.0.0" -e '.[dev]'
+	$(VENVEL)/bin/python -m pip install --progress-bar off "pyelastica==1.0.0" -e '.[dev,cosseratbench]'
 	touch $(STAMPEL)
 
 venv-elastica: $(STAMPEL)
@@ -71,6 +71,22 @@ report: $(STAMP) $(STAMP317) $(STAMPEL)
 		--results docs/report/results.jsonl --report-dir docs/report
 	$(VENV)/bin/python benchmarks/bench_hair.py --append-to docs/report/results.jsonl
 	$(VENV)/bin/python -m derods compare --full --workers 2 --results docs/report/results.jsonl --report-dir docs/report
+
+# cosseratbench, an independent rod benchmark suite: every experiment at its default
+# resolution, and at half and twice it for the cantilever, catenary and twist, on derods
+# (MuJoCo 4), MuJoCo's cable (3.17) and PyElastica, one run at a time; then the report's
+# section docs/report/cosseratbench.md. Saved runs whose inputs have not changed are reused
+# (the suite's own rule); delete $(CB_RESULTS) to measure everything again.
+CB_RESULTS := results/cosseratbench
+CB_VARIED := cantilever catenary twist
+cosseratbench: $(STAMP) $(STAMP317) $(STAMPEL)
+	$(VENV)/bin/cosseratbench run -s derods -o $(CB_RESULTS)
+	$(VENV)/bin/cosseratbench run $(CB_VARIED) -s derods -v resolution -o $(CB_RESULTS)
+	$(VENV317)/bin/cosseratbench run -s mujoco -o $(CB_RESULTS)
+	$(VENV317)/bin/cosseratbench run $(CB_VARIED) -s mujoco -v resolution -o $(CB_RESULTS)
+	$(VENVEL)/bin/cosseratbench run -s pyelastica -o $(CB_RESULTS)
+	$(VENVEL)/bin/cosseratbench run $(CB_VARIED) -s pyelastica -v resolution -o $(CB_RESULTS)
+	$(VENV)/bin/python benchmarks/cosseratbench_report.py --results $(CB_RESULTS)
 
 # The README's pictures of the scenes and of the render quality.
 docs-images: $(STAMP)

@@ -246,7 +246,10 @@ class World:
         if not self._entries:
             raise validation.InvalidInputError("the world has no rods; add one with add_rod()")
         t0 = time.perf_counter()
-        collide = any(g.contype or g.conaffinity for g in self.spec.geoms)
+        # Rods touch the scene's colliding geoms, and one another when there are several:
+        # two rods crossing in an empty world collide too.
+        collide = (any(g.contype or g.conaffinity for g in self.spec.geoms)
+                   or (self.contact.rod_rod and len(self._entries) > 1))
         add_to_spec(self.spec, self._entries, self.contact, collide)
         t1 = time.perf_counter()
         n_vertices = sum(e.rod.n_vertices for e in self._entries)
