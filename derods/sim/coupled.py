@@ -235,8 +235,15 @@ class CoupledStep:
 
     def _predict_held(self, step, aq: np.ndarray) -> None:
         """held_x of the vertices held by bodies with dofs: where MuJoCo's integrator takes
-        them with the holders' acceleration aq (m,) (qvel + h qacc, then mj_integratePos and
-        kinematics on a scratch copy of the data: a turning holder's points move on arcs)."""
+        them with the holders' acceleration aq (m,) (:meth:`_integrated`: a turning
+        holder's points move on arcs)."""
+        self.held_x[self._riding_vertex] = self._integrated(step, aq).xpos[self._riding_body]
+
+    def _integrated(self, step, aq: np.ndarray) -> mujoco.MjData:
+        """The scratch copy of MuJoCo's data posed where its integrator takes the holders'
+        trees this step with acceleration aq (m,): qvel + h aq, mj_integratePos, kinematics
+        (mocap poses copied: a jointed body may hang from a mocap one). Its velocity is left
+        in ``self._qvel``."""
         m, d, hl, h = step.model, step.data, self.holders, step.h
         ds = hl._scratch
         ds.qpos[:] = d.qpos
@@ -245,7 +252,7 @@ class CoupledStep:
         self._qvel[hl.tree] = d.qvel[hl.tree] + h * aq
         mujoco.mj_integratePos(m, ds.qpos, self._qvel, h)
         mujoco.mj_kinematics(m, ds)
-        self.held_x[self._riding_vertex] = ds.xpos[self._riding_body]
+        return ds
 
     def _arc(self, step, jac: np.ndarray, aq_guess: np.ndarray) -> np.ndarray:
         """How far beyond J h v the held points go in this step [m], shape (3H,), their
@@ -260,15 +267,9 @@ class CoupledStep:
         growing as w^2 until the strain limit projected the rod every step and a stiff
         rod's swing diverged). With the offset a known motion of the held points, the
         rods follow the arc."""
-        m, d, hl, h = step.model, step.data, self.holders, step.h
-        ds = hl._scratch
-        ds.qpos[:] = d.qpos
-        self._qvel[:] = 0.0
-        self._qvel[hl.tree] = d.qvel[hl.tree] + h * aq_guess
-        mujoco.mj_integratePos(m, ds.qpos, self._qvel, h)
-        mujoco.mj_kinematics(m, ds)
-        moved = ds.xpos[self._held_body] - step.x[hl.held]
-        return moved.ravel() - jac @ (h * self._qvel[hl.dofs])
+        hl = self.holders
+        moved = self._integrated(step, aq_guess).xpos[self._held_body] - step.x[hl.held]
+        return moved.ravel() - jac @ (step.h * self._qvel[hl.dofs])
 
     def _own_holder_rows(self, d: mujoco.MjData) -> np.ndarray | None:
         """Which constraint rows (nefc,) are contacts of a held edge with its own holder's
