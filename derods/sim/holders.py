@@ -151,6 +151,25 @@ def invariant(k_qq: np.ndarray, k_qf_sum: np.ndarray, mode: np.ndarray) -> np.nd
     return k - r @ p.T - p @ r.T + p @ (mode.T @ r) @ p.T
 
 
+def clipped_rotations(k_rr: np.ndarray, jac_r: np.ndarray, k_hh: np.ndarray) -> np.ndarray:
+    """The rotational block of K_qq (r, r) [N m/rad] made no softer than its Gauss-Newton
+    part: J_r^T K_hh J_r (jac_r (3H, r), k_hh (3H, 3H)) plus only the positive part (by
+    eigenvalues) of what the differences add to it (the rods' geometric stiffness at the
+    held points, the levers, a clamp's own bending and twisting).
+
+    The band and K_fq are Gauss-Newton, PSD; the differenced block is exact and may be
+    indefinite. Mixed, the holders' Schur complement can drift below their inertia: a 50 g
+    arm on a hinge under a moving mocap base, clamping a 0.5 m rod, went from 0.0100 to
+    below the arm's 0.00052 kg m^2 over ten steps while swinging back, and diverged (dt
+    1e-2, the base moving 1 cm). Kept at least Gauss-Newton, the Schur complement stays
+    above the inertia (a Schur complement of a PSD matrix adds to it); the negative part
+    left out acts one step late, as in the rods' own band."""
+    gn = jac_r.T @ k_hh @ jac_r
+    gn = 0.5 * (gn + gn.T)
+    lam, vec = np.linalg.eigh(0.5 * (k_rr + k_rr.T) - gn)
+    return gn + (vec * np.maximum(lam, 0.0)) @ vec.T
+
+
 class Holders:
     """The bodies with dofs that hold rod ends, and the matrices of the coupled step (solved
     with the contacts by :mod:`derods.sim.coupled`). Built once from
@@ -315,6 +334,8 @@ class Holders:
         # rotations' by the differences above, made symmetric.
         t, r = ~self._eps_rot, self._eps_rot
         k_hh = gather(self._bands, self._held_blocks, (3 * len(self.held), 3 * len(self.held)))
+        if r.any():
+            k_q[np.ix_(r, r)] = clipped_rotations(k_q[np.ix_(r, r)], jac[:, r], k_hh)
         if t.any():
             gn = jac[:, t].T @ k_hh @ jac[:, t]
             gn = 0.5 * (gn + gn.T)
