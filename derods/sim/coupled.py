@@ -48,7 +48,7 @@ from .._numba.contact_rows import bordered_rows, transpose_apply_all
 from .._numba.dense import lu_factor, lu_solve, spd_factor
 from .._numba.implicit import sm_solve_into
 from .contact import MAX_ITER, SUPPORTED, TOL, WINDOW, ContactStep, WithTrees
-from .holders import Holders, rotational
+from .holders import Holders
 
 #: A held point's arc (:meth:`CoupledStep._arc`) guessed off by more than this share of
 #: the shortest edge is solved again: the strain the miss leaves in a held edge.
@@ -81,12 +81,8 @@ class CoupledStep:
         self._elem_holder = _element_holders(model, layout, holders.bodies)
         self._qvel = np.zeros(model.nv)
         self._no_rows = np.zeros(0, dtype=np.bool_)
-        #: Whether a held point can turn (a rotational dof moves it): then it moves on arcs.
-        self._turning = bool(np.any([rotational(model, int(j)) for j in holders.dofs]))
         self._aq_last = np.zeros(self.m)
         self._arc_tol = ARC_TOL * holders.shortest_edge
-        #: The vertex body of each held vertex (riding its holder).
-        self._held_body = np.asarray(layout.body, dtype=np.int64)[holders.held]
         #: Whether the dofs that move held points are all of their trees' (a cart, a box, an arm).
         self._whole_tree = len(holders.dofs) == self.m
         #: Geoms of the holders that collide, whose contacts with a held edge are the edge's own.
@@ -141,7 +137,7 @@ class CoupledStep:
         schur = h_qq.copy()
         schur[cc] -= s * (k_f.T @ y)
         # (slide-only holders have the Gauss-Newton K_qq = J^T K_hh J: S >= M by construction)
-        fix = None if hl._slides_only else definite(schur, metric)
+        fix = definite(schur, metric) if hl.turning else None
         if fix is not None:
             schur += fix
             h_qq += fix
@@ -188,7 +184,7 @@ class CoupledStep:
                                    Border(h_fq, hqq, jq_, aq), MAX_ITER, TOL)
             return a, aq, ext + transpose_apply_all(col0, jw, fptr, fcol, fval, lam, nn)
 
-        if not self._turning:  # held points only translate: no arcs
+        if not hl.turning:  # held points only translate: no arcs
             a, aq, f = solve()
         else:
             # The held points move on arcs (see _arc), known once a_q is: guessed from the
@@ -226,7 +222,7 @@ class CoupledStep:
         points' Jacobian: where no held point turns, they move by it exactly."""
         hl, h = self.holders, step.h
         self.held_x[:] = step.x
-        if not self._turning and self._held_are_riding:
+        if not hl.turning and self._held_are_riding:
             v_q = step.qvel[hl.dofs] + h * aq[hl._in_tree]
             self.held_x[hl.held] += (jac @ (h * v_q)).reshape(-1, 3)
         elif len(self._riding_vertex):
@@ -268,7 +264,7 @@ class CoupledStep:
         rod's swing diverged). With the offset a known motion of the held points, the
         rods follow the arc."""
         hl = self.holders
-        moved = self._integrated(step, aq_guess).xpos[self._held_body] - step.x[hl.held]
+        moved = self._integrated(step, aq_guess).xpos[hl.held_body] - step.x[hl.held]
         return moved.ravel() - jac @ (step.h * self._qvel[hl.dofs])
 
     def _own_holder_rows(self, d: mujoco.MjData) -> np.ndarray | None:

@@ -151,11 +151,18 @@ def invariant(k_qq: np.ndarray, k_qf_sum: np.ndarray, mode: np.ndarray) -> np.nd
     return k - r @ p.T - p @ r.T + p @ (mode.T @ r) @ p.T
 
 
-def clipped_rotations(k_rr: np.ndarray, jac_r: np.ndarray, k_hh: np.ndarray) -> np.ndarray:
+def gauss_newton(jac: np.ndarray, k_hh: np.ndarray) -> np.ndarray:
+    """J^T K_hh J made symmetric: the Gauss-Newton K_qq [N/m or N m/rad] (k, k) of holder
+    dofs whose held points move by jac (3H, k), k_hh (3H, 3H) the band's blocks among them."""
+    gn = jac.T @ k_hh @ jac
+    return 0.5 * (gn + gn.T)
+
+
+def clipped_rotations(k_rr: np.ndarray, gn_rr: np.ndarray) -> np.ndarray:
     """The rotational block of K_qq (r, r) [N m/rad] made no softer than its Gauss-Newton
-    part: J_r^T K_hh J_r (jac_r (3H, r), k_hh (3H, 3H)) plus only the positive part (by
-    eigenvalues) of what the differences add to it (the rods' geometric stiffness at the
-    held points, the levers, a clamp's own bending and twisting).
+    part gn_rr (:func:`gauss_newton`): gn_rr plus only the positive part (by eigenvalues)
+    of what the differences add to it (the rods' geometric stiffness at the held points,
+    the levers, a clamp's own bending and twisting).
 
     The band and K_fq are Gauss-Newton, PSD; the differenced block is exact and may be
     indefinite. Mixed, the holders' Schur complement can drift below their inertia: a 50 g
@@ -164,10 +171,8 @@ def clipped_rotations(k_rr: np.ndarray, jac_r: np.ndarray, k_hh: np.ndarray) -> 
     1e-2, the base moving 1 cm). Kept at least Gauss-Newton, the Schur complement stays
     above the inertia (a Schur complement of a PSD matrix adds to it); the negative part
     left out acts one step late, as in the rods' own band."""
-    gn = jac_r.T @ k_hh @ jac_r
-    gn = 0.5 * (gn + gn.T)
-    lam, vec = np.linalg.eigh(0.5 * (k_rr + k_rr.T) - gn)
-    return gn + (vec * np.maximum(lam, 0.0)) @ vec.T
+    lam, vec = np.linalg.eigh(0.5 * (k_rr + k_rr.T) - gn_rr)
+    return gn_rr + (vec * np.maximum(lam, 0.0)) @ vec.T
 
 
 class Holders:
@@ -199,12 +204,17 @@ class Holders:
         #: The rods' shortest rest edge length [m].
         self.shortest_edge = edge
         self._eps_rot = np.array([rotational(model, int(j)) for j in self.dofs])
+        #: Whether a held point can turn (a rotational dof moves it): then it moves on arcs;
+        #: if not, every holder dof is a slide with slides above it (fixed axes).
+        self.turning = bool(self._eps_rot.any())
         self._eps = np.where(self._eps_rot, FD_STEP, FD_STEP * edge)
         self._band_of_rod = np.arange(rods.n_rods, dtype=np.int64)
         self._jacp, self._jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
         coupled = np.isin(reactions.bodies[reactions.held_slot], self.bodies)
         #: Held vertices on these bodies (H,), and the rod of each.
         self.held = reactions.held_vertex[coupled]
+        #: The vertex body of each held vertex (riding its holder).
+        self.held_body = np.asarray(layout.body, dtype=np.int64)[self.held]
         self._rod_of_held = np.searchsorted(rods.v_off, self.held, side="right") - 1
         # Every vertex's place in its own rod's band, held ones included: the Gauss-Newton
         # blocks between free and held vertices come from the compiled step itself.
@@ -219,8 +229,6 @@ class Holders:
         self._held_blocks = self._held_entries(band_rows)
         self._turns = None
         self._twisted = None
-        #: Every holder dof a slide with slides above it: held points move along fixed axes.
-        self._slides_only = all(model.jnt_type[model.dof_jntid[j]] == mujoco.mjtJoint.mjJNT_SLIDE for j in self.dofs)
         self._slide_jac = None
         self._share_band(layout, rods)
 
@@ -288,12 +296,12 @@ class Holders:
         data). Where rods and holders float freely (:func:`translation_mode`), k_q is made
         exact on the translations too (:func:`invariant`): linear momentum is kept.
         """
-        if self._slides_only:
+        if not self.turning:
             return self._slide_stiffness(step)
         m, d, lay, fr = step.model, step.data, step.layout, step.frames
         ds, xs, x = self._scratch, self._xs, step.x
         k = len(self.dofs)
-        jac, frame, k_q = np.zeros((3 * len(self.held), k)), np.zeros((lay.n, k)), np.zeros((k, k))
+        frame, k_q = np.zeros((lay.n, k)), np.zeros((k, k))
         ds.mocap_pos[:], ds.mocap_quat[:] = d.mocap_pos, d.mocap_quat
         if self._turns is None:  # clamps on bodies turn their frames (the world's layout: fixed)
             self._turns = bool(np.any(step.ends.body >= 0))
@@ -324,26 +332,20 @@ class Holders:
             k_q[:, j] = -(gens[0] - gens[1]) / (2.0 * eps)
             if grads:
                 frame[:, j] = (grads[0] - grads[1]) / (2.0 * eps)
-        for c, v in enumerate(self.held):  # the held points' motion per dof, exact
-            mujoco.mj_jac(m, d, self._jacp, self._jacr, x[v], int(step.layout.body[v]))
-            jac[3 * c:3 * c + 3] = self._jacp[:, self.dofs]
+        jac = self._held_jacobian(m, d, x)  # exact
         k_fh = self.held_blocks(step)
         k_f = k_fh @ jac + frame
         # Translations: K_qq's rows and columns J^T K_hh J, the band's own Gauss-Newton blocks
         # (moving a body along a line moves its held points rigidly, no lever turns); the
-        # rotations' by the differences above, made symmetric.
+        # rotations' by the differences above, kept no softer than that (clipped_rotations).
         t, r = ~self._eps_rot, self._eps_rot
         k_hh = gather(self._bands, self._held_blocks, (3 * len(self.held), 3 * len(self.held)))
-        if r.any():
-            k_q[np.ix_(r, r)] = clipped_rotations(k_q[np.ix_(r, r)], jac[:, r], k_hh)
+        gn = gauss_newton(jac, k_hh)
+        rr = np.ix_(r, r)
+        k_q[rr] = clipped_rotations(k_q[rr], gn[rr])
         if t.any():
-            gn = jac[:, t].T @ k_hh @ jac[:, t]
-            gn = 0.5 * (gn + gn.T)
-            if r.any():
-                k_q[np.ix_(t, t)] = gn
-                k_q[np.ix_(r, t)] = k_q[np.ix_(t, r)].T  # the rotations' columns, differenced, give both
-            else:
-                k_q = gn
+            k_q[np.ix_(t, t)] = gn[np.ix_(t, t)]
+            k_q[np.ix_(r, t)] = k_q[np.ix_(t, r)].T  # the rotations' columns, differenced, give both
         if self._translation is not None:
             # K_qf times every free vertex moved along x, y, z: k_f's rows summed by axis
             k_q = invariant(k_q, k_f.reshape(-1, 3, k).sum(axis=0).T, self._translation)
@@ -354,17 +356,20 @@ class Holders:
         held points move along the slides' axes, fixed in the world, so J is constant
         (taken once) and there is nothing to difference: K_qq = J^T K_hh J."""
         if self._slide_jac is None:
-            m, d, k = step.model, step.data, len(self.dofs)
-            self._slide_jac = np.zeros((3 * len(self.held), k))
-            for c, v in enumerate(self.held):
-                mujoco.mj_jac(m, d, self._jacp, self._jacr, step.x[v], int(step.layout.body[v]))
-                self._slide_jac[3 * c:3 * c + 3] = self._jacp[:, self.dofs]
+            self._slide_jac = self._held_jacobian(step.model, step.data, step.x)
         jac = self._slide_jac
         k_fh = self.held_blocks(step)
         k_hh = gather(self._bands, self._held_blocks, (3 * len(self.held), 3 * len(self.held)))
-        k_f = k_fh @ jac
-        k_q = jac.T @ k_hh @ jac
-        return Stiffness(k_f, 0.5 * (k_q + k_q.T), k_fh, k_hh, jac)
+        return Stiffness(k_fh @ jac, gauss_newton(jac, k_hh), k_fh, k_hh, jac)
+
+    def _held_jacobian(self, m: mujoco.MjModel, d: mujoco.MjData, x: np.ndarray) -> np.ndarray:
+        """The held points' motion per holder dof (3H, k), by mj_jac at positions x
+        (n_vertices, 3) [m] in data d's kinematics."""
+        jac = np.empty((3 * len(self.held), len(self.dofs)))
+        for c, (v, b) in enumerate(zip(self.held, self.held_body)):
+            mujoco.mj_jac(m, d, self._jacp, self._jacr, x[v], int(b))
+            jac[3 * c:3 * c + 3] = self._jacp[:, self.dofs]
+        return jac
 
     def held_blocks(self, step) -> np.ndarray:
         """K_fh (n, 3H) [N/m]: the Gauss-Newton Hessian blocks between the rods' free dofs and

@@ -82,9 +82,7 @@ class TreeDynamics:
         Euler's (unless disabled)."""
         k = len(dofs)
         if not self.implicit:
-            if m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_EULERDAMP:
-                return np.zeros((k, k))
-            return -np.diag(m.dof_damping[dofs])
+            return np.diag(self._euler_damping(m, dofs))
         smooth_vel(m, d, self._bias)
         out = np.zeros((k, k))
         for i, dof in enumerate(dofs):
@@ -98,11 +96,18 @@ class TreeDynamics:
     def metric(self, m: mujoco.MjModel, d: mujoco.MjData, dofs: np.ndarray) -> np.ndarray:
         """M - h D on dofs: the matrix MuJoCo's integrator solves with."""
         out = self.mass(m, d, dofs)
-        if not self.implicit:  # Euler's: D is minus the joint damping, on the diagonal
-            if not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_EULERDAMP:
-                out.flat[::len(dofs) + 1] += m.opt.timestep * m.dof_damping[dofs]
+        if not self.implicit:  # Euler's D is diagonal: onto M's diagonal in place
+            out.flat[::len(dofs) + 1] -= m.opt.timestep * self._euler_damping(m, dofs)
             return out
         return out - m.opt.timestep * self.damping(m, d, dofs)
+
+    @staticmethod
+    def _euler_damping(m: mujoco.MjModel, dofs: np.ndarray) -> np.ndarray:
+        """The diagonal of D (k,) [N s/m or N m s] MuJoCo's Euler integrator solves with: minus
+        the joint damping, which it takes implicitly (zero when that is disabled)."""
+        if m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_EULERDAMP:
+            return np.zeros(len(dofs))
+        return -m.dof_damping[dofs]
 
     @staticmethod
     def write(d: mujoco.MjData, dofs: np.ndarray, metric: np.ndarray, qacc: np.ndarray) -> None:
