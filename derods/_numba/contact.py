@@ -65,11 +65,11 @@ def delassus_diagonal(lt, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, fptr, fcol
 
 
 @nb.njit(cache=True)
-def bordered_weights(lt, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, fptr, fcol, fval, y_border, jq, lu, piv,
-                     ratio):
-    """The rows' weights in the metric of a system bordered by m dofs (bodies holding rods,
-    :mod:`derods.sim.coupled`): D_i = 1 / (ratio_i diag(J H^-1 J^T)_i), 0 where that is not
-    positive (a row nothing can move). diag(J H^-1 J^T) is the band's part
+def row_weights(lt, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, fptr, fcol, fval, y_border, jq, lu, piv, ratio):
+    """The rows' weights in the metric of the implicit step, MuJoCo's impedance kept: D_i =
+    1 / (ratio_i diag(J H^-1 J^T)_i), 0 where that is not positive (a row nothing can
+    move); H the rods' A, bordered by m dofs (bodies holding rods, :mod:`derods.sim.coupled`;
+    m = 0 for none). diag(J H^-1 J^T) is the band's part
     (:func:`delassus_diagonal`) plus the border's, u S^-1 u^T with u = J_q - J_f y_border;
     y_border (n, m): A^-1 H_fq; jq (k, m): the rows' entries on the border; lu, piv: the
     Schur complement S's factors (:func:`derods._numba.dense.lu_factor`); ratio (k,):
@@ -193,8 +193,8 @@ def solve_block(row, col, val, efc_rows, supported, efc_force, efc_aref, efc_r, 
         for i in range(len(efc)):
             aref[i] = efc_aref[efc[i]]
             r_over_diag[i] = efc_r[efc[i]] / efc_diag_a[efc[i]]
-        d = 1.0 / (r_over_diag * delassus_diagonal(lt, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, fptr, fcol,
-                                                   fval))
+        d = row_weights(lt, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, fptr, fcol, fval, np.zeros((n, 0)),
+                        np.zeros((len(efc), 0)), np.zeros((0, 0)), np.zeros(0, dtype=np.int64), r_over_diag)
         a, _, lam, _ = newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a, col0, jw, fptr, fcol,
                               fval, aref, d, no_border(n, len(efc)), max_iter, tol)
         force_out += transpose_apply_all(col0, jw, fptr, fcol, fval, lam, n)

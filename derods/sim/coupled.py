@@ -156,9 +156,9 @@ class CoupledStep:
                 big_y = np.zeros((nn, mq))
                 big_y[:n, c] = y
             # MuJoCo's impedance kept in this metric (see the module docstring)
-            weights = _k.bordered_weights(ext_sys.lt, ext_sys.g, sysm.tw_lo, sysm.tw_hi, sysm.tw_c, s, ext_sys.z,
-                                          sysm.den, col0, jw, fptr, fcol, fval, big_y, np.ascontiguousarray(jq),
-                                          lu, piv, d.efc_R[efc] / d.efc_diagA[efc])
+            weights = _k.row_weights(ext_sys.lt, ext_sys.g, sysm.tw_lo, sysm.tw_hi, sysm.tw_c, s, ext_sys.z,
+                                     sysm.den, col0, jw, fptr, fcol, fval, big_y, np.ascontiguousarray(jq),
+                                     lu, piv, d.efc_R[efc] / d.efc_diagA[efc])
             newton_args = (h_fq, np.ascontiguousarray(h_qq), np.ascontiguousarray(jq), col0, jw, fptr, fcol, fval,
                            np.ascontiguousarray(d.efc_aref[efc]), weights)
 
