@@ -361,8 +361,6 @@ class Rod:
         closed form and enters as a reduced, rank-one term (others need Newton's method)."""
         return "bend_material" not in self.active_terms
 
-    has_kernel = True  #: every rod's step_terms runs in the compiled kernel
-
     def step_terms(self, state: RodState, x: np.ndarray, use_kernel: bool | None = None,
                    boundary: TwistBoundary | None = None) -> StepTerms:
         """Advance to positions ``x`` and evaluate what an implicit step needs.

@@ -126,7 +126,7 @@ def sparse_triplets(rownnz, rowadr, colind, values):
 
 @nb.njit(cache=True)
 def split_rows(row, col, val, local_of_dof, supported, force, n, width):
-    """Sort constraint rows that touch rod dofs (see :func:`derods.contact.rod_rows`).
+    """Sort constraint rows that touch rod dofs (step 1 of :func:`derods._numba.contact.contact_step`).
 
     row, col, val: the nonzeros of MuJoCo's efc_J; local_of_dof (nv,): local rod dof or -1;
     supported (nefc,): rows derods can solve; force (nefc,): MuJoCo's row forces; n: local
