@@ -126,7 +126,7 @@ def test_tip_mass_frequency_closed_form():
     """The coupling case's reference: mu = 0 gives the bare cantilever's 1.8751; a heavy
     tip tends to the massless spring 3 alpha / L^3 with mass m + 33/140 of the rod's
     (beta L)^4 -> 3 / (mu + 33/140), within 1e-4 at mu = 1000."""
-    from derods.bench.coupling import tip_mass_root
+    from derods.reference import tip_mass_root
 
     assert tip_mass_root(0.0) == pytest.approx(1.8751040687, abs=1e-9)
     for mu in (10.0, 1000.0):

@@ -414,7 +414,7 @@ def ring_buckles(p: CaseParams, total_twist: float, perturbation: float = 1e-3) 
 def michell(p: CaseParams, tol: float = 0.002) -> list[dict]:
     """Critical twist of a naturally straight ring by bisection (REFERENCE.md case 5)."""
     mat = p.material
-    ref = 2 * math.pi * math.sqrt(3) * mat.alpha / mat.beta
+    ref = reference.michell_critical_twist(mat.alpha, mat.beta)
     lo, hi = 0.5 * ref, 1.5 * ref
     t0 = time.perf_counter()
     stable, note, steps, world, trials = True, "", 0, None, 0
@@ -446,7 +446,7 @@ def michell(p: CaseParams, tol: float = 0.002) -> list[dict]:
 def circle(p: CaseParams, max_time: float = 300.0) -> list[dict]:
     """A clamped rod curled by the end couple 2 pi alpha / L (REFERENCE.md case 3)."""
     mat = p.material
-    moment = 2 * math.pi * mat.alpha / p.length
+    moment = reference.closing_couple(mat.alpha, p.length)
     world, _ = p.build.cantilever(p, 0.0, 10.0)
     t0 = time.perf_counter()
     stable, note, measured = True, "", None
@@ -505,7 +505,7 @@ def twist(p: CaseParams, turns: float = 2.0, ramp: float = 2.0, hold: float = 3.
         world.step(int(round(hold / p.dt)))
         measured = float(world.data.actuator_force[0])
         turned = float(world.data.qpos[world.model.joint("turn").qposadr[0]])
-        ref = mat.beta * turned / p.length
+        ref = reference.twist_torque(mat.beta, turned, p.length)
         twist_in_rod = float(world.rod_state("rod").theta[-1] - world.rod_state("rod").theta[0])
     except DivergenceError as err:
         stable, note, twist_in_rod = False, str(err), None

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import frames, scenes, shapes
+from .. import frames, reference, scenes, shapes
 from ..rod import Material, Rod
 from ..sim.world import ContactParams, World
 from ..twist import TwistBoundary
@@ -254,7 +254,7 @@ class Session:
         """Michell's critical total twist of a naturally straight ring [rad]:
         2 pi sqrt(3) alpha / beta."""
         mat = self.settings.material
-        return 2.0 * math.pi * math.sqrt(3.0) * mat.alpha / mat.beta
+        return reference.michell_critical_twist(mat.alpha, mat.beta)
 
     def michell_preset(self, twist_ratio: float = 1.2) -> None:
         """Switch to a closed ring (circumference: the curve's length) twisted to

@@ -8,7 +8,7 @@ import math
 import mujoco
 import numpy as np
 
-from .. import frames, shapes
+from .. import frames, reference, shapes
 from . import overlay, render
 
 #: Control points [m] of the default two-segment cubic Bezier curve.
@@ -98,7 +98,7 @@ def michell_pair(out, n_edges: int = 50, below: float = 0.9, above: float = 1.2,
 
     out = render.check_output_path(out, render.IMAGE_SUFFIXES, "--out")
     mat = Material(young=1e7, radius=0.005, shear=0.5e7)  # alpha = beta
-    theta_c = 2 * math.pi * math.sqrt(3) * mat.alpha / mat.beta
+    theta_c = reference.michell_critical_twist(mat.alpha, mat.beta)
     radius = 0.2
     rings = []
     for frac, centre in ((below, -0.3), (above, 0.3)):
