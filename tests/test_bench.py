@@ -66,10 +66,10 @@ def test_closest_approach_sees_a_ring_pass_through_itself():
     t = np.linspace(0, 2 * math.pi, 80, endpoint=False)
     eight = np.stack([np.sin(t), np.sin(t) * np.cos(t), 0 * t], axis=1)
     h = np.linalg.norm(np.diff(eight, axis=0), axis=1).max()
-    assert bench.cases._closest_approach(eight, h) < h / 8
+    assert bench.measures.closest_approach(eight, h) < h / 8
     circle = np.stack([np.cos(t), np.sin(t), 0 * t], axis=1)
     h = 2 * math.sin(math.pi / 80)
-    assert 3 * h * 0.99 < bench.cases._closest_approach(circle, h) < 3.3 * h
+    assert 3 * h * 0.99 < bench.measures.closest_approach(circle, h) < 3.3 * h
 
 
 @pytest.mark.parametrize("dt,tol", [(1e-2, 0.05), (1e-3, 0.01)])

@@ -65,7 +65,7 @@ def test_a_damped_holder_moves_as_mujoco_integrates_it():
     for k in range(n):
         world.step()
         z[k] = world.positions("rod")[-1, 2] - 1.0
-    from derods.bench.cases import crossing_frequency
+    from derods.bench.measures import crossing_frequency
 
     assert crossing_frequency(z, p.dt) == pytest.approx(ref, rel=1e-2)
 

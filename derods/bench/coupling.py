@@ -29,6 +29,7 @@ from ..reference import tip_mass_frequency
 from ..rod import Rod
 from ..sim.divergence import DivergenceError
 from ..sim.world import World
+from .measures import crossing_frequency, record, step_recording, tip_height
 
 #: Body mass over rod mass.
 MASS_RATIOS = (1e-3, 1e-2, 1e-1, 1.0, 10.0, 100.0, 1000.0)
@@ -82,8 +83,6 @@ def _bend(world: World, x: np.ndarray, length: float) -> None:
 
 def coupling(p, periods: float = 3.0) -> list[dict]:
     """One record per body mass in MASS_RATIOS (see the module docstring)."""
-    from .cases import _record, crossing_frequency, step_recording, tip_height  # the harness's
-
     mat = p.material
     rod_mass = mat.line_density * p.length
     out = []
@@ -99,8 +98,8 @@ def coupling(p, periods: float = 3.0) -> list[dict]:
             note = f"fewer than two upward crossings in {n_steps} steps"
         if stable and not np.all(np.isfinite(z)) or (stable and np.max(np.abs(z)) > 0.5 * p.length):
             stable, note = False, f"the tip left the swing: |z| up to {np.nanmax(np.abs(z)):.3g} m"
-        out.append(_record("coupling", p, world, measured if stable else None, ref, stable, wall, mass_ratio=mu,
-                           body_mass=mu * rod_mass, note=note))
+        out.append(record("coupling", p, world, measured if stable else None, ref, stable, wall, mass_ratio=mu,
+                          body_mass=mu * rod_mass, note=note))
     return out
 
 
