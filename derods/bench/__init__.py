@@ -1,6 +1,6 @@
 """The comparison harness: benchmark cases (:mod:`.cases`, :mod:`.extreme`, :mod:`.coupling`)
 with their parameters (:mod:`.params`) and measures (:mod:`.measures`), run on any backend
-(derods or MuJoCo's native rods, :mod:`.native`) through one protocol (:mod:`.backends`),
+(derods or MuJoCo's native rods, :mod:`.native` and :mod:`.cable`) through one protocol (:mod:`.backends`),
 by name (:mod:`.command`), in sweeps (:mod:`.sweep`) and into the report (:mod:`.report`).
 
 ``from derods import bench; bench.run("cantilever", bench.CaseParams(n_edges=20))``.
