@@ -24,7 +24,8 @@ import mujoco
 import numpy as np
 
 from . import validation, scenes
-from .rod import Material, Rod
+from .material import Material
+from .rod import Rod
 from .sim.world import ContactParams, World
 
 #: The head scene, its mocap head body, its skull geom and the site of the neck pivot.

@@ -17,7 +17,8 @@ import numpy as np
 
 from .. import scenes, shapes
 from ..viz import render
-from ..rod import Material, Rod
+from ..material import Material
+from ..rod import Rod
 from ..twist import TwistBoundary
 from ..sim import scene_checks
 from ..sim.divergence import DivergenceError

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..rod import Material
+from ..material import Material
 from ..sim.world import MODES as _WORLD_MODES
 from . import native
 from .backends import BACKENDS as _BACKENDS

@@ -21,7 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import frames, reference, scenes, shapes
-from ..rod import Material, Rod
+from ..material import Material
+from ..rod import Rod
 from ..sim.world import ContactParams, World
 from ..twist import TwistBoundary
 from ..viz.render import atomic_output

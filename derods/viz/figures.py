@@ -92,7 +92,8 @@ def michell_pair(out, n_edges: int = 50, below: float = 0.9, above: float = 1.2,
                  width: int = 960, height: int = 480) -> dict:
     """Write a PNG of two twisted rings after ``seconds``: at ``below`` and ``above``
     times Michell's critical twist 2 pi sqrt(3) alpha / beta (left planar, right buckled)."""
-    from ..rod import Material, Rod
+    from ..material import Material
+    from ..rod import Rod
     from ..twist import TwistBoundary
     from ..sim.world import ContactParams, World
 
