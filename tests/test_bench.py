@@ -1,4 +1,4 @@
-"""Benchmark records of derods/bench.py and the `derods bench` command."""
+"""Benchmark records (derods/bench/: cases, measures, command) and the `derods bench` command."""
 
 from __future__ import annotations
 

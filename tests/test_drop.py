@@ -1,4 +1,4 @@
-"""`derods drop`: scenes, headless videos written atomically, and its errors (derods/drop.py)."""
+"""`derods drop`: scenes, headless videos written atomically, and its errors (derods/apps/drop.py)."""
 
 from __future__ import annotations
 

@@ -170,7 +170,7 @@ def test_internal_forces_balance(closed, term):
 @pytest.mark.parametrize("n", [50, 100, 200])
 def test_circle_bending_energy(n):
     """A naturally straight rod bent into a circle of radius R stores pi alpha / R
-    (the continuum (1/2) alpha (1/R)^2 2 pi R; REFERENCE.md case 3). On the inscribed
+    (the continuum (1/2) alpha (1/R)^2 2 pi R: derods.reference.circle_bending_energy). On the inscribed
     regular n-gon |kb| = 2 tan(pi/n) and l = 4 R sin(pi/n), so E / (pi alpha / R) =
     tan(x)^2 / (x sin x) = 1 + (5/6) x^2 + O(x^4), x = pi/n: 0.33 % at n = 50."""
     radius, alpha = 0.3, 2.0

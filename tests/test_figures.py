@@ -1,4 +1,4 @@
-"""Still pictures (derods/figures.py): `derods frames` and `derods michell`."""
+"""Still pictures (derods/viz/figures.py): `derods frames` and `derods michell`."""
 
 from __future__ import annotations
 

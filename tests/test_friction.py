@@ -1,6 +1,6 @@
 """Static friction: a rod resting on an incline below its friction angle stays put.
 
-Coulomb (REFERENCE.md case 9): a body on a plane tilted by theta holds while
+Coulomb: a body on a plane tilted by theta holds while
 tan(theta) < mu, without creeping. cosseratbench's capstan asks the same of a
 heavy rope over a cylinder (below the holding overhang it must move < 1 mm in
 2 s); derods' rope creeps there, and this is the smallest case that shows it.

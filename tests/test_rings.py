@@ -128,7 +128,7 @@ def test_writhe_of_known_curves():
 
 def test_end_moment_curls_rod_into_a_circle():
     """End couple 2 pi alpha / L on a clamped rod closes it to within 1 % of L at n = 40
-    (REFERENCE.md case 3; measured 0.84 %, and 3.3 % / 0.21 % at n = 20 / 80: O(1/n^2)).
+    (derods.reference.closing_couple; measured 0.84 %, and 3.3 % / 0.21 % at n = 20 / 80: O(1/n^2)).
     The couple is two opposite forces on the last edge's vertices, perpendicular to it in
     the xz plane, following it as it turns; no gravity, mass damping 10 / s."""
     mat = derods.Material(young=1e6)

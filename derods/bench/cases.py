@@ -69,7 +69,7 @@ def _first_mode_rate(p: CaseParams) -> float:
 
 
 def cantilever(p: CaseParams, max_time: float = 30.0) -> list[dict]:
-    """Static tip drop of a horizontal cantilever under its weight (REFERENCE.md case 2)."""
+    """Static tip drop of a horizontal cantilever under its weight, against the elastica."""
     mat = p.material
     ref = reference.cantilever_elastica(mat.line_density * p.gravity, p.length, mat.alpha)["tip_drop"]
     # Mass-proportional damping at 0.7 of critical on the slowest mode settles it fastest.
@@ -92,7 +92,7 @@ def cantilever(p: CaseParams, max_time: float = 30.0) -> list[dict]:
 
 
 def frequency(p: CaseParams, periods: int = 4) -> list[dict]:
-    """First bending frequency of a clamped-free rod (REFERENCE.md case 4), no gravity."""
+    """First bending frequency of a clamped-free rod, no gravity, against Euler-Bernoulli."""
     mat = p.material
     ref = reference.cantilever_frequency(mat.alpha, mat.line_density, p.length)
     world, rest_x = p.build.cantilever(p, 0.0, 0.0)
@@ -235,7 +235,7 @@ def ring_buckles(p: CaseParams, total_twist: float, perturbation: float = 1e-3) 
 
 
 def michell(p: CaseParams, tol: float = 0.002) -> list[dict]:
-    """Critical twist of a naturally straight ring by bisection (REFERENCE.md case 5)."""
+    """Critical twist of a naturally straight ring by bisection, against Michell's."""
     mat = p.material
     ref = reference.michell_critical_twist(mat.alpha, mat.beta)
     lo, hi = 0.5 * ref, 1.5 * ref
@@ -267,7 +267,7 @@ def michell(p: CaseParams, tol: float = 0.002) -> list[dict]:
 
 
 def circle(p: CaseParams, max_time: float = 300.0) -> list[dict]:
-    """A clamped rod curled by the end couple 2 pi alpha / L (REFERENCE.md case 3)."""
+    """A clamped rod curled by the end couple 2 pi alpha / L into a closed circle."""
     mat = p.material
     moment = reference.closing_couple(mat.alpha, p.length)
     world, _ = p.build.cantilever(p, 0.0, 10.0)
