@@ -59,7 +59,8 @@ def test_ring_twist_energy(total):
     twist = rod.derivatives(state, 0, terms=("twist",)).energy
     np.testing.assert_allclose(twist, reference.twist_energy(MAT.beta, total, rod.length), rtol=1e-12)
     bend = rod.derivatives(state, 0, terms=("bend_isotropic",)).energy
-    np.testing.assert_allclose(bend, reference.circle_bending_energy(MAT.alpha, radius), rtol=5 / 6 * (np.pi / n) ** 2 * 1.01)
+    np.testing.assert_allclose(bend, reference.circle_bending_energy(MAT.alpha, radius),
+                               rtol=5 / 6 * (np.pi / n) ** 2 * 1.01)
 
 
 def arc_state(n=20, theta0=0.1):
