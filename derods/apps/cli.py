@@ -81,10 +81,10 @@ def _before_filming(out, still, params) -> None:
     """Refuse what can be refused (the output paths; seconds, fps and dt that do not make
     whole frames) before the compiled kernels are prepared, then prepare them."""
     from derods.sim import warmup
-    from derods.viz import render
+    from derods.viz import filming, output
 
-    render.check_outputs(out, still)
-    render.frame_plan(params.seconds, params.fps, params.dt)
+    output.check_outputs(out, still)
+    filming.frame_plan(params.seconds, params.fps, params.dt)
     warmup.prepare()
 
 
