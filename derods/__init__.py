@@ -15,6 +15,8 @@ with an :class:`InvalidInputError` (a ``ValueError``) or :class:`InvalidTypeErro
 a ``TypeError``) that names the parameter, the value and what to pass.
 """
 
+from typing import TYPE_CHECKING
+
 from .energy import Configuration, Derivatives
 from .material import Material
 from .rod import Rod
@@ -23,6 +25,10 @@ from .stencil import Hessian
 from .twist import TwistBoundary
 from .validation import InvalidIndexError, InvalidInputError, InvalidTypeError, SceneWarning
 from . import frames, geometry, shapes
+
+if TYPE_CHECKING:  # served lazily by __getattr__ below; named here for type checkers and the API reference
+    from .sim.divergence import DivergenceError
+    from .sim.world import MODES, ContactParams, World
 
 __version__ = "0.1.0"
 
