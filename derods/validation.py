@@ -333,12 +333,13 @@ def contact_params(c) -> None:
 
 def world_options(scene, dt, gravity, mode, mass_damping, stiffness_damping, contact, integrator, strain_limit,
                   scene_checks) -> None:
-    """World's arguments (the scene is read by World itself)."""
+    """World's arguments (the scene is read by :func:`derods.sim.inputs.scene_spec`)."""
     import os
 
     import mujoco
 
-    from .sim.world import MODES, ContactParams
+    from .sim.contact_params import ContactParams
+    from .sim.inputs import MODES
 
     if scene is not None and not isinstance(scene, (str, os.PathLike, mujoco.MjSpec)):
         refuse("scene", "None, a path to an MJCF file or a mujoco.MjSpec", scene, "pass a path such as 'scene.xml'",
