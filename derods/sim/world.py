@@ -34,6 +34,7 @@ import numpy as np
 from .. import frames
 from .._numba.coupling import gather_positions
 from .. import validation
+from ..io import mjcf_load
 from ..rod import Rod, RodState, check_turns
 from ..step import Frames, RodSet
 from .clamps import end_bodies, twist_boundary
@@ -112,6 +113,9 @@ class World:
         is projected back onto its rest lengths (see
         :data:`derods.sim.integrators.STRAIN_LIMIT`, the default, 1e-3); ``math.inf``
         turns it off.
+    rods_from: which rods a scene file declares are derods': "composite" (default: MuJoCo
+        3.x cable composites, ``<composite type="cable">``) or "flexcomp" (1D flexcomps too);
+        see :mod:`derods.io.mjcf_load` and docs/mjcf.md.
     scene_checks: at compile, warn (:class:`derods.SceneWarning`) of a step too long for
         the fall or for a thin obstacle, a rod starting inside an obstacle, and a rod
         held at both ends that starts longer than its rest length
@@ -130,19 +134,17 @@ class World:
     def __init__(self, scene=None, *, dt: float | None = None, gravity=None, mode: str = "auto",
                  mass_damping: float = 0.0, stiffness_damping: float = 0.0,
                  contact: ContactParams = ContactParams(), integrator: str | None = None,
-                 strain_limit: float | None = None, scene_checks: bool = True):
+                 strain_limit: float | None = None, scene_checks: bool = True, rods_from: str = "composite"):
         validation.world_options(scene, dt, gravity, mode, mass_damping, stiffness_damping, contact, integrator,
                                  strain_limit, scene_checks)
+        mjcf_load.check_rods_from(scene, rods_from)
         if isinstance(scene, mujoco.MjSpec):
             self.spec = scene
         elif scene is None:
             self.spec = mujoco.MjSpec()
             self.spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
         else:
-            try:
-                self.spec = mujoco.MjSpec.from_file(str(scene))
-            except Exception as err:  # MuJoCo raises ValueError with its parser message
-                raise validation.InvalidInputError(f"cannot read MJCF scene {str(scene)!r}: {err}") from None
+            self.spec, declared = mjcf_load.load(str(scene), rods_from)
         if integrator is not None:
             self.spec.option.integrator = getattr(mujoco.mjtIntegrator, "mjINT_" + integrator.upper())
         if dt is not None:
@@ -163,6 +165,10 @@ class World:
         self._guard = None
         self.mode = None
         self.explicit_dt_limit = None
+        #: Collision flex attributes by rod name, set at compile (rods declared in MJCF).
+        self._flex_settings = {}
+        if not isinstance(scene, (mujoco.MjSpec, type(None))):
+            mjcf_load.add_rods(self, declared)
 
     # -- building ------------------------------------------------------------
     def add_rod(self, rod: Rod, name: str | None = None, *, start: str = "free", end: str = "free",
@@ -251,6 +257,7 @@ class World:
         collide = (any(g.contype or g.conaffinity for g in self.spec.geoms)
                    or (self.contact.rod_rod and len(self._entries) > 1))
         add_to_spec(self.spec, self._entries, self.contact, collide)
+        mjcf_load.apply_flex_settings(self.spec, self._flex_settings)
         t1 = time.perf_counter()
         n_vertices = sum(e.rod.n_vertices for e in self._entries)
         if n_vertices > PROGRESS_FROM:

@@ -1,0 +1,250 @@
+"""A MuJoCo model file with rods declared in it, read into a scene and derods rods.
+
+:func:`load` reads the file as XML; every ``<composite type="cable">`` (and, with
+``rods_from="flexcomp"``, every 1D ``<flexcomp>``) becomes a :class:`CableDecl`, and the
+rest is compiled by MuJoCo's own parser (``mujoco.MjSpec.from_string``). A cable
+composite leaves behind the bodies and sites models refer to: ``B_first`` in its place
+(welded, on a ball joint or free, as its ``initial`` says) with ``S_first``, and
+``B_last``, a free body, with ``S_last``; the rod's end edges are clamped to them, so an
+equality, actuator, sensor, contact exclude or tendon naming them keeps working. A
+reference to what the rod replaced (an inner body ``B_3``, a geom ``G5``, a joint
+``J_2``) is refused in one line. :func:`add_rods` puts the declared rods into a
+:class:`derods.World`. A file with nothing to convert is read by ``MjSpec.from_file`` as
+before.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+import xml.etree.ElementTree as ET
+
+import mujoco
+import numpy as np
+
+from .. import validation
+from . import cable_geometry as geo
+from . import mjcf_cable, mjcf_flexcomp, mjcf_xml
+from .mjcf_cable import CableDecl
+
+#: What World's ``rods_from`` takes: cable composites only (always read: MuJoCo 4 cannot),
+#: or 1D flexcomps too.
+RODS_FROM = ("composite", "flexcomp")
+#: Attributes that name elements rather than refer to them.
+_NAMING = {"name", "class", "childclass", "prefix"}
+
+
+def check_rods_from(scene, rods_from) -> None:
+    """Refuse a ``rods_from`` World cannot honour: an unknown one, or "flexcomp" with a scene
+    that is not a file (a spec's flexcomps are already MuJoCo's bodies)."""
+    validation.choice("rods_from", rods_from, RODS_FROM)
+    if rods_from == "flexcomp" and (scene is None or isinstance(scene, mujoco.MjSpec)):
+        raise validation.InvalidInputError("rods_from='flexcomp' reads the flexcomps of a scene file: pass the "
+                                           "file's path as the scene")
+
+
+def load(path: str, rods_from: str = "composite") -> tuple[mujoco.MjSpec, list[CableDecl]]:
+    """The scene of the MJCF file ``path`` and the rods it declares (vertices in world frame)."""
+    validation.choice("rods_from", rods_from, RODS_FROM)
+    root = mjcf_xml.read(path)
+    world = root.find("worldbody")
+    comps = [] if world is None else list(world.iter("composite"))
+    flexes = [] if world is None or rods_from != "flexcomp" else [
+        f for f in world.iter("flexcomp") if mjcf_flexcomp.is_rod(f)]
+    if not comps and not flexes:
+        try:
+            return mujoco.MjSpec.from_file(path), []
+        except Exception as err:  # MuJoCo raises ValueError with its parser message
+            raise validation.InvalidInputError(f"cannot read MJCF scene {path!r}: {err}") from None
+    classes = mjcf_xml.default_classes(root)
+    instances = _plugin_instances(root)
+    taken = {e.get("name") for e in root.iter() if e.get("name")}
+    decls, inner, lasts, found = [], {}, [], []
+
+    def walk(elem: ET.Element, bodies: list, parent: str | None):
+        for i, child in enumerate(list(elem)):
+            if child.tag == "body":
+                walk(child, bodies + [child], child.get("name"))
+            elif child.tag == "frame":
+                if any(c.tag in ("composite", "flexcomp") for c in child.iter()):
+                    mjcf_xml.refuse(child, "holds a composite or flexcomp: derods reads them directly in a body or "
+                                           "the world body; move it out of the frame")
+            elif child.tag == "composite":
+                cls = mjcf_xml.childclass(bodies)
+                decl = mjcf_cable.read_composite(child, cls, classes, instances,
+                                                 "world" if not bodies else (parent or ""), taken)
+                first, last = mjcf_cable.holder_bodies(child, decl, cls, classes)
+                elem.remove(child)
+                elem.insert(i, first)
+                lasts.append(last)
+                decls.append(decl)
+                taken.add(decl.name)
+                n = len(decl.x)
+                inner.update({k: (decl.element, v) for k, v in
+                              mjcf_cable.generated_names(child.get("prefix", ""), n).items()})
+            elif child.tag == "flexcomp" and child in flexes:
+                if bodies and not parent and mjcf_flexcomp.pinned(child):
+                    mjcf_xml.refuse(child, "is pinned to an unnamed body: name the body so the rod's held ends "
+                                           "can ride on it")
+                found.append((elem, child, "world" if not bodies else parent))
+
+    walk(world, [], None)
+    for last in lasts:
+        world.append(last)
+    _check_references(root, inner)
+    _drop_cable_plugins(root)
+    _keyframes(root)
+    _absolute_dirs(root, os.path.dirname(os.path.abspath(path)))
+    if found:
+        # The flexcomps' points where MuJoCo's compiler puts them, then the scene without them.
+        model = _compile(_spec(root, path), path)
+        for holder, elem, parent in found:
+            decls.append(mjcf_flexcomp.read_flexcomp(elem, parent, model))
+            inner.update({k: (mjcf_xml.where(elem), v) for k, v in
+                          mjcf_flexcomp.generated_names(elem.get("name"), len(decls[-1].x)).items()})
+            holder.remove(elem)
+    _check_references(root, inner)
+    spec = _spec(root, path)
+    _to_world(spec, decls)
+    return spec, decls
+
+
+def _spec(root: ET.Element, path: str) -> mujoco.MjSpec:
+    try:
+        return mujoco.MjSpec.from_string(ET.tostring(root, encoding="unicode"))
+    except Exception as err:
+        raise validation.InvalidInputError(f"cannot read MJCF scene {path!r}: {err}") from None
+
+
+def _compile(spec: mujoco.MjSpec, path: str) -> mujoco.MjModel:
+    try:
+        return spec.compile()
+    except Exception as err:
+        raise validation.InvalidInputError(f"cannot compile MJCF scene {path!r}: {err}") from None
+
+
+def _plugin_instances(root: ET.Element) -> dict:
+    """``<extension>`` plugin instances by name: (plugin name, their config elements)."""
+    out = {}
+    for ext in root.findall("extension"):
+        for plug in ext.findall("plugin"):
+            for inst in plug.findall("instance"):
+                out[inst.get("name")] = (plug.get("plugin"), inst.findall("config"))
+    return out
+
+
+def _drop_cable_plugins(root: ET.Element) -> None:
+    """Remove the cable plugin's declarations (MuJoCo 4 has no such plugin; derods replaces it)."""
+    for ext in root.findall("extension"):
+        for plug in ext.findall("plugin"):
+            if plug.get("plugin") == "mujoco.elasticity.cable":
+                ext.remove(plug)
+        if len(ext) == 0:
+            root.remove(ext)
+
+
+def _check_references(root: ET.Element, inner: dict) -> None:
+    """Refuse a reference to an element a cable composite made that derods does not keep."""
+    if not inner:
+        return
+    for elem in root.iter():
+        if elem.tag == "default":
+            continue
+        for key, value in elem.attrib.items():
+            if key in _NAMING:
+                continue
+            for token in value.split():
+                kind = inner.get(token)
+                if kind is not None and kind[1] == "inner":
+                    mjcf_xml.refuse(elem, f'{key}="{value}" refers to {token!r}, which {kind[0]} made and derods '
+                                          "replaces by a rod: refer to B_first, B_last, S_first or S_last (the "
+                                          "rod's end edges are clamped to them) instead")
+
+
+def _keyframes(root: ET.Element) -> None:
+    """Keyframes keep their time, ctrl, act and mocap poses; their qpos and qvel, laid out for
+    MuJoCo's jointed cable, do not fit derods' rods and are dropped (said once)."""
+    dropped = []
+    for frames in root.findall("keyframe"):
+        for key in frames.findall("key"):
+            for attr in ("qpos", "qvel"):
+                if key.get(attr) is not None:
+                    del key.attrib[attr]
+                    dropped.append(key.get("name") or mjcf_xml.where(key))
+    if dropped:
+        warnings.warn(f"keyframes {sorted(set(dropped))}: their qpos and qvel were laid out for MuJoCo's jointed "
+                      "cable and are dropped (the rods start as declared; time, ctrl, act and mocap poses are "
+                      "kept)", validation.SceneWarning, stacklevel=4)
+
+
+def _absolute_dirs(root: ET.Element, folder: str) -> None:
+    """Make the compiler's asset folders absolute: the model is compiled from a string."""
+    comp = root.find("compiler")
+    if comp is None:
+        comp = ET.Element("compiler")
+        root.insert(0, comp)
+    keys = ("meshdir", "texturedir", "assetdir")
+    if not any(comp.get(k) for k in keys):
+        comp.set("assetdir", folder)
+    for k in keys:
+        if comp.get(k) and not os.path.isabs(comp.get(k)):
+            comp.set(k, os.path.join(folder, comp.get(k)))
+
+
+def _to_world(spec: mujoco.MjSpec, decls: list[CableDecl]) -> None:
+    """Put each declared rod's vertices and first director in world frame, and each B_last
+    where its rod's last edge starts, from the compiled pose of the parent (found through
+    B_first, which sits at a known pose in it, or the flexcomp's parent body)."""
+    moved = [d for d in decls if d.parent != "world"]
+    if moved:
+        model = _compile(spec, "with its rods' holders")
+        data = mujoco.MjData(model)
+        mujoco.mj_kinematics(model, data)
+    for d in decls:
+        if d.parent == "world":
+            p, rot = np.zeros(3), np.eye(3)
+        elif d.start_body is not None and d.start_body.endswith("B_first"):
+            b = model.body(d.start_body).id
+            rb = data.xmat[b].reshape(3, 3)
+            rot = rb @ geo.quat_to_mat(geo.body_frames(d.x)[0]).T
+            p = data.xpos[b] - rot @ d.x[0]
+        else:
+            b = model.body(d.parent).id
+            p, rot = data.xpos[b].copy(), data.xmat[b].reshape(3, 3).copy()
+        if d.last_pose is not None:
+            pos, quat = d.last_pose
+            body = spec.body(d.end_body)
+            body.pos = p + rot @ pos
+            q = np.zeros(4)
+            mujoco.mju_mat2Quat(q, (rot @ geo.quat_to_mat(quat)).ravel())
+            body.quat = q
+        d.x = d.x @ rot.T + p
+        if d.u0 is not None:
+            d.u0 = rot @ d.u0
+
+
+def add_rods(world, decls: list[CableDecl]) -> None:
+    """Add the declared rods to ``world`` (a :class:`derods.World` not yet compiled): each
+    with its material, ends and colour; their collision flexes' written contact attributes
+    (applied at compile); their internal viscosity, the largest, as the world's
+    ``stiffness_damping`` when the world was given none."""
+    from ..rod import Material, Rod
+
+    settings = getattr(world, "_flex_settings", None)
+    for d in decls:
+        rod = Rod(d.x, Material(**d.material), u0=d.u0, natural_curvature=not d.flat)
+        kw = {} if d.rgba is None else {"rgba": d.rgba}
+        world.add_rod(rod, d.name, start=d.start, end=d.end, x=d.x, start_body=d.start_body, end_body=d.end_body,
+                      **kw)
+        if settings is not None and d.contact:
+            settings[d.name] = dict(d.contact)
+    damping = max((d.stiffness_damping for d in decls), default=0.0)
+    if world.stiffness_damping == 0.0 and damping > 0.0:
+        world.stiffness_damping = damping
+
+
+def apply_flex_settings(spec: mujoco.MjSpec, settings: dict) -> None:
+    """Set the written contact attributes of each rod's collision flex (named as the rod)."""
+    for flex in spec.flexes:
+        for key, value in settings.get(flex.name, {}).items():
+            setattr(flex, key, value.tolist() if isinstance(value, np.ndarray) else value)
