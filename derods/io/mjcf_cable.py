@@ -84,6 +84,9 @@ class CableDecl:
     element: str = ""
     #: B_last's pose in ``parent``'s frame: position [m] (3,) and quaternion (4,).
     last_pose: tuple | None = None
+    #: The composite's prefix and ``initial`` (None for a flexcomp).
+    prefix: str = ""
+    initial: str | None = None
 
 
 def generated_names(prefix: str, count: int) -> dict[str, str]:
@@ -291,18 +294,35 @@ def read_composite(comp: ET.Element, cls: str | None, classes: dict, instances: 
         except ValueError:
             refuse(plug, f'config key="vmax" value="{vmax}" must be a number [Pa]', label)
     return CableDecl(
-        name=name, x=x, material=material, flat=flat, u0=u0, start="clamp", end="clamp",
-        start_body=f"{prefix}B_first", end_body=f"{prefix}B_last", rgba=rgba, contact=contact,
+        name=name, x=x, material=material, flat=flat, u0=u0, rgba=rgba, contact=contact, prefix=prefix,
+        initial=initial,
         stiffness_damping=damping * l_mean / (young * 0.5 * (second[0] + second[1])), vmax=vmax_v, parent=parent,
         element=where(comp, label), last_pose=(x[-2].copy(), frames[-1].copy()),
     )
 
 
-def holder_bodies(comp: ET.Element, decl: CableDecl, cls: str | None, classes: dict) -> tuple[ET.Element,
-                                                                                                ET.Element]:
+def set_ends(decl: CableDecl, first_body: bool, last_body: bool) -> None:
+    """How the rod's ends are held: by the bodies B_first (welded for ``initial="none"``, else
+    when ``first_body``: the model refers to it) and B_last (when ``last_body``), clamping
+    the end edges; else as ``initial`` says without a body (a "ball" start pinned to the
+    parent, a "free" start free) and a free end. An end already held (an equality made a
+    hold, :func:`derods.io.mjcf_load`) keeps its hold."""
+    parent = None if decl.parent == "world" else decl.parent
+    if decl.start == "free":
+        if decl.initial == "none" or first_body:
+            decl.start, decl.start_body = "clamp", f"{decl.prefix}B_first"
+        elif decl.initial == "ball":
+            decl.start, decl.start_body = "pin", parent
+    if decl.end == "free" and last_body:
+        decl.end, decl.end_body = "clamp", f"{decl.prefix}B_last"
+
+
+def holder_bodies(comp: ET.Element, decl: CableDecl, cls: str | None, classes: dict) -> tuple[ET.Element | None,
+                                                                                                ET.Element | None]:
     """The XML of B_first (for the composite's place, in its parent's frame) and B_last (for
-    the world body; its pose is set once the parent's is known), with their joints, sites
-    and small inertias (their held vertices carry the rod's mass)."""
+    the world body; its pose is set once the parent's is known), those the rod's ends are
+    clamped to (:func:`set_ends`; None for the others), with their joints, sites and small
+    inertias (their held vertices carry the rod's mass)."""
     prefix = comp.get("prefix", "")
     initial = comp.get("initial", "ball")
     frames = geo.body_frames(decl.x)
@@ -336,7 +356,8 @@ def holder_bodies(comp: ET.Element, decl: CableDecl, cls: str | None, classes: d
     ET.SubElement(last, "freejoint")
     ET.SubElement(last, "site", {**site, "name": f"{prefix}S_last", "pos": _fmt([edges[-1], 0, 0]),
                                  "quat": "1 0 0 0"})
-    return first, last
+    return (first if decl.start_body == f"{prefix}B_first" else None,
+            last if decl.end_body == f"{prefix}B_last" else None)
 
 
 def _fmt(v) -> str:

@@ -24,7 +24,7 @@ import numpy as np
 
 from .. import validation
 from . import cable_geometry as geo
-from . import mjcf_cable, mjcf_flexcomp, mjcf_xml
+from . import mjcf_cable, mjcf_equality, mjcf_flexcomp, mjcf_xml
 from .mjcf_cable import CableDecl
 
 #: What World's ``rods_from`` takes: cable composites only (always read: MuJoCo 4 cannot),
@@ -59,10 +59,10 @@ def load(path: str, rods_from: str = "composite") -> tuple[mujoco.MjSpec, list[C
     classes = mjcf_xml.default_classes(root)
     instances = _plugin_instances(root)
     taken = {e.get("name") for e in root.iter() if e.get("name")}
-    decls, inner, lasts, found = [], {}, [], []
+    decls, inner, found, placed = [], {}, [], []
 
     def walk(elem: ET.Element, bodies: list, parent: str | None):
-        for i, child in enumerate(list(elem)):
+        for child in list(elem):
             if child.tag == "body":
                 walk(child, bodies + [child], child.get("name"))
             elif child.tag == "frame":
@@ -70,18 +70,17 @@ def load(path: str, rods_from: str = "composite") -> tuple[mujoco.MjSpec, list[C
                     mjcf_xml.refuse(child, "holds a composite or flexcomp: derods reads them directly in a body or "
                                            "the world body; move it out of the frame")
             elif child.tag == "composite":
+                if bodies and not parent:  # the rod's vertices are placed from its parent's pose, found by name
+                    parent = f"{child.get('prefix', '')}cable_parent"
+                    bodies[-1].set("name", parent)
                 cls = mjcf_xml.childclass(bodies)
-                decl = mjcf_cable.read_composite(child, cls, classes, instances,
-                                                 "world" if not bodies else (parent or ""), taken)
-                first, last = mjcf_cable.holder_bodies(child, decl, cls, classes)
-                elem.remove(child)
-                elem.insert(i, first)
-                lasts.append(last)
+                decl = mjcf_cable.read_composite(child, cls, classes, instances, parent if bodies else "world",
+                                                 taken)
+                placed.append((elem, child, cls, decl))
                 decls.append(decl)
                 taken.add(decl.name)
-                n = len(decl.x)
                 inner.update({k: (decl.element, v) for k, v in
-                              mjcf_cable.generated_names(child.get("prefix", ""), n).items()})
+                              mjcf_cable.generated_names(child.get("prefix", ""), len(decl.x)).items()})
             elif child.tag == "flexcomp" and child in flexes:
                 if bodies and not parent and mjcf_flexcomp.pinned(child):
                     mjcf_xml.refuse(child, "is pinned to an unnamed body: name the body so the rod's held ends "
@@ -89,9 +88,20 @@ def load(path: str, rods_from: str = "composite") -> tuple[mujoco.MjSpec, list[C
                 found.append((elem, child, "world" if not bodies else parent))
 
     walk(world, [], None)
-    for last in lasts:
-        world.append(last)
     _check_references(root, inner)
+    held_by = mjcf_equality.to_holds(root, decls)
+    for elem, comp, cls, decl in placed:
+        elem.remove(comp)  # (references are looked for outside the composites)
+    refs = _referenced(root, decls)
+    for elem, comp, cls, decl in placed:
+        mjcf_cable.set_ends(decl, *refs[decl.name])
+        first, last = mjcf_cable.holder_bodies(comp, decl, cls, classes)
+        if first is not None:
+            elem.append(first)
+        if last is not None:
+            world.append(last)
+    if held_by:
+        warnings.warn("; ".join(held_by), validation.SceneWarning, stacklevel=3)
     _drop_cable_plugins(root)
     _keyframes(root)
     _absolute_dirs(root, os.path.dirname(os.path.abspath(path)))
@@ -161,6 +171,27 @@ def _check_references(root: ET.Element, inner: dict) -> None:
                                           "rod's end edges are clamped to them) instead")
 
 
+def _referenced(root: ET.Element, decls: list[CableDecl]) -> dict[str, tuple[bool, bool]]:
+    """Per cable rod: whether the model (outside the composites) refers to its B_first,
+    S_first or J_first, and to its B_last or S_last."""
+    names = {}
+    for d in decls:
+        if d.initial is not None:
+            p = d.prefix
+            names.update({f"{p}B_first": (d.name, 0), f"{p}S_first": (d.name, 0), f"{p}J_first": (d.name, 0),
+                          f"{p}B_last": (d.name, 1), f"{p}S_last": (d.name, 1)})
+    out = {d.name: [False, False] for d in decls}
+    for elem in root.iter():
+        if elem.tag == "default":
+            continue
+        for key, value in elem.attrib.items():
+            if key not in _NAMING:
+                for token in value.split():
+                    if token in names:
+                        out[names[token][0]][names[token][1]] = True
+    return {k: tuple(v) for k, v in out.items()}
+
+
 def _keyframes(root: ET.Element) -> None:
     """Keyframes keep their time, ctrl, act and mocap poses; their qpos and qvel, laid out for
     MuJoCo's jointed cable, do not fit derods' rods and are dropped (said once)."""
@@ -193,8 +224,7 @@ def _absolute_dirs(root: ET.Element, folder: str) -> None:
 
 def _to_world(spec: mujoco.MjSpec, decls: list[CableDecl]) -> None:
     """Put each declared rod's vertices and first director in world frame, and each B_last
-    where its rod's last edge starts, from the compiled pose of the parent (found through
-    B_first, which sits at a known pose in it, or the flexcomp's parent body)."""
+    where its rod's last edge starts, from the compiled pose of the parent body."""
     moved = [d for d in decls if d.parent != "world"]
     if moved:
         model = _compile(spec, "with its rods' holders")
@@ -203,15 +233,10 @@ def _to_world(spec: mujoco.MjSpec, decls: list[CableDecl]) -> None:
     for d in decls:
         if d.parent == "world":
             p, rot = np.zeros(3), np.eye(3)
-        elif d.start_body is not None and d.start_body.endswith("B_first"):
-            b = model.body(d.start_body).id
-            rb = data.xmat[b].reshape(3, 3)
-            rot = rb @ geo.quat_to_mat(geo.body_frames(d.x)[0]).T
-            p = data.xpos[b] - rot @ d.x[0]
         else:
             b = model.body(d.parent).id
             p, rot = data.xpos[b].copy(), data.xmat[b].reshape(3, 3).copy()
-        if d.last_pose is not None:
+        if d.last_pose is not None and d.end_body == f"{d.prefix}B_last":
             pos, quat = d.last_pose
             body = spec.body(d.end_body)
             body.pos = p + rot @ pos
