@@ -87,6 +87,8 @@ class CableDecl:
     #: The composite's prefix and ``initial`` (None for a flexcomp).
     prefix: str = ""
     initial: str | None = None
+    #: Names of the cable's end bodies and sites the model only reads (sensors, cameras).
+    read: set = field(default_factory=set)
 
 
 def generated_names(prefix: str, count: int) -> dict[str, str]:
@@ -169,6 +171,23 @@ def vertices(comp: ET.Element, label: str) -> np.ndarray:
         k = int(np.argmin(edges))
         refuse(comp, f"vertices {k} and {k + 1} coincide: a cable's edges need a length; move one of them", label)
     return x + offset
+
+
+def contact_attrs(elem: ET.Element, shown: ET.Element, label: str | None = None) -> dict:
+    """The contact attributes of :data:`CONTACT_ATTRS` written on ``elem`` (a geom with its
+    defaults, or a flexcomp's ``<contact>``; ``shown`` names it in messages), as the
+    collision flex takes them: integers, or float arrays (friction padded to 3 with
+    MuJoCo's defaults)."""
+    contact = {}
+    for key, n in CONTACT_ATTRS.items():
+        if elem.get(key) is not None:
+            vals = numbers(elem, key, n, None, label)
+            contact[key] = int(vals[0]) if key in ("condim", "contype", "conaffinity", "priority") else vals
+    if "friction" in contact and len(contact["friction"]) < 3:
+        contact["friction"] = np.concatenate([contact["friction"], [0.005, 0.0001][len(contact["friction"]) - 1:]])
+    if contact.get("condim", 3) not in (1, 3, 4, 6):
+        refuse(shown, f'condim="{contact["condim"]}" must be 1, 3, 4 or 6', label)
+    return contact
 
 
 def read_composite(comp: ET.Element, cls: str | None, classes: dict, instances: dict, parent: str,
@@ -271,15 +290,7 @@ def read_composite(comp: ET.Element, cls: str | None, classes: dict, instances: 
     else:
         material = {"young": young, "shear": shear, "radius": r, "density": line_density / (math.pi * r * r)}
     damping = number(joint, "damping", 0.0, label, ge=0, unit="N m s/rad")
-    contact = {}
-    for key, n in CONTACT_ATTRS.items():
-        if geom.get(key) is not None:
-            vals = numbers(geom, key, n, None, label)
-            contact[key] = int(vals[0]) if key in ("condim", "contype", "conaffinity", "priority") else vals
-    if "friction" in contact and len(contact["friction"]) < 3:
-        contact["friction"] = np.concatenate([contact["friction"], [0.005, 0.0001][len(contact["friction"]) - 1:]])
-    if "condim" in contact and contact["condim"] not in (1, 3, 4, 6):
-        refuse(gelem, f'condim="{contact["condim"]}" must be 1, 3, 4 or 6', label)
+    contact = contact_attrs(geom, gelem, label)
     rgba = None
     if geom.get("rgba") is not None:
         rgba = tuple(float(c) for c in numbers(geom, "rgba", 4, None, label, "0.8 0.2 0.1 1"))

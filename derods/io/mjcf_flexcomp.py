@@ -26,12 +26,9 @@ import xml.etree.ElementTree as ET
 import mujoco
 import numpy as np
 
-from .mjcf_cable import CableDecl
+from .mjcf_cable import CableDecl, contact_attrs
 from .mjcf_xml import number, numbers, refuse, where
 
-#: ``<contact>`` attributes passed to the rod's collision flex.
-CONTACT_ATTRS = {"friction": (1, 2, 3), "condim": 1, "contype": 1, "conaffinity": 1, "solref": 2, "solimp": (3, 5),
-                 "margin": 1, "gap": 1, "priority": 1, "solmix": 1}
 
 
 def is_rod(elem: ET.Element) -> bool:
@@ -75,7 +72,7 @@ def read_flexcomp(elem: ET.Element, parent: str, model: mujoco.MjModel) -> Cable
         if child.tag not in ("elasticity", "pin", "contact", "edge"):
             refuse(child, f"<{child.tag}> in a 1D flexcomp is not read by derods: remove it, or keep the flexcomp "
                           "MuJoCo's (rods_from='composite')")
-    f = model.flex(name).id
+    f = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_FLEX, name)
     adr, nvert = int(model.flex_vertadr[f]), int(model.flex_vertnum[f])
     edges = model.flex_elem[model.flex_elemdataadr[f]:model.flex_elemdataadr[f] + 2 * model.flex_elemnum[f]]
     chain = np.column_stack([np.arange(nvert - 1), np.arange(1, nvert)]).ravel()
@@ -109,13 +106,8 @@ def read_flexcomp(elem: ET.Element, parent: str, model: mujoco.MjModel) -> Cable
         refuse(elem, f"pins point(s) {sorted(pins - held)}: derods holds a rod by its ends only (pin id 0, or 0 1 "
                      "to clamp; the last one or two points likewise)")
     holder = None if parent == "world" else parent
-    contact = {}
     celem = elem.find("contact")
-    if celem is not None:
-        for key, n in CONTACT_ATTRS.items():
-            if celem.get(key) is not None:
-                vals = numbers(celem, key, n)
-                contact[key] = int(vals[0]) if key in ("condim", "contype", "conaffinity", "priority") else vals
+    contact = {} if celem is None else contact_attrs(celem, celem)
     rgba = None if elem.get("rgba") is None else tuple(float(c) for c in numbers(elem, "rgba", 4))
     return CableDecl(
         name=name, x=x, material={"young": young, "shear": shear, "radius": radius,

@@ -100,6 +100,10 @@ def load(path: str, rods_from: str = "composite") -> tuple[mujoco.MjSpec, list[C
             elem.append(first)
         if last is not None:
             world.append(last)
+        made = {e.get("name") for b in (first, last) if b is not None for e in b.iter()}
+        decl.read -= made
+        for name in sorted(decl.read):  # placeholders, moved onto the rod's vertices at compile
+            world.append(ET.Element("site" if "S_" in name[len(decl.prefix):] else "body", {"name": name}))
     if held_by:
         warnings.warn("; ".join(held_by), validation.SceneWarning, stacklevel=3)
     _drop_cable_plugins(root)
@@ -171,24 +175,40 @@ def _check_references(root: ET.Element, inner: dict) -> None:
                                           "rod's end edges are clamped to them) instead")
 
 
+#: Elements whose references only read a body or site (no force through it).
+_READERS = {"camera", "light", "exclude", "key"}
+
+
 def _referenced(root: ET.Element, decls: list[CableDecl]) -> dict[str, tuple[bool, bool]]:
-    """Per cable rod: whether the model (outside the composites) refers to its B_first,
-    S_first or J_first, and to its B_last or S_last."""
+    """Per cable rod, whether the model (outside the composites) acts through its start's
+    B_first, S_first or J_first and its end's B_last or S_last (an equality, actuator or
+    tendon naming them: they need bodies that hold the rod's end edges), and notes in
+    ``decl.read`` the names only read (sensors, cameras, lights, excludes, keyframes)."""
     names = {}
     for d in decls:
         if d.initial is not None:
             p = d.prefix
-            names.update({f"{p}B_first": (d.name, 0), f"{p}S_first": (d.name, 0), f"{p}J_first": (d.name, 0),
-                          f"{p}B_last": (d.name, 1), f"{p}S_last": (d.name, 1)})
+            names.update({f"{p}B_first": (d, 0), f"{p}S_first": (d, 0), f"{p}J_first": (d, 0),
+                          f"{p}B_last": (d, 1), f"{p}S_last": (d, 1)})
     out = {d.name: [False, False] for d in decls}
-    for elem in root.iter():
+
+    def walk(elem: ET.Element, reading: bool):
         if elem.tag == "default":
-            continue
+            return
+        reading = reading or elem.tag in _READERS or elem.tag == "sensor"
         for key, value in elem.attrib.items():
             if key not in _NAMING:
                 for token in value.split():
                     if token in names:
-                        out[names[token][0]][names[token][1]] = True
+                        d, k = names[token]
+                        if reading:
+                            d.read.add(token)
+                        else:
+                            out[d.name][k] = True
+        for child in elem:
+            walk(child, reading)
+
+    walk(root, False)
     return {k: tuple(v) for k, v in out.items()}
 
 
@@ -250,26 +270,43 @@ def _to_world(spec: mujoco.MjSpec, decls: list[CableDecl]) -> None:
 
 def add_rods(world, decls: list[CableDecl]) -> None:
     """Add the declared rods to ``world`` (a :class:`derods.World` not yet compiled): each
-    with its material, ends and colour; their collision flexes' written contact attributes
-    (applied at compile); their internal viscosity, the largest, as the world's
+    with its material, ends and colour (what else they need is added at compile,
+    :func:`finish_spec`); their internal viscosity, the largest, as the world's
     ``stiffness_damping`` when the world was given none."""
     from ..rod import Material, Rod
 
-    settings = getattr(world, "_flex_settings", None)
     for d in decls:
         rod = Rod(d.x, Material(**d.material), u0=d.u0, natural_curvature=not d.flat)
         kw = {} if d.rgba is None else {"rgba": d.rgba}
         world.add_rod(rod, d.name, start=d.start, end=d.end, x=d.x, start_body=d.start_body, end_body=d.end_body,
                       **kw)
-        if settings is not None and d.contact:
-            settings[d.name] = dict(d.contact)
     damping = max((d.stiffness_damping for d in decls), default=0.0)
     if world.stiffness_damping == 0.0 and damping > 0.0:
         world.stiffness_damping = damping
 
 
-def apply_flex_settings(spec: mujoco.MjSpec, settings: dict) -> None:
-    """Set the written contact attributes of each rod's collision flex (named as the rod)."""
-    for flex in spec.flexes:
-        for key, value in settings.get(flex.name, {}).items():
-            setattr(flex, key, value.tolist() if isinstance(value, np.ndarray) else value)
+def finish_spec(spec: mujoco.MjSpec, decls: list[CableDecl]) -> None:
+    """What the declared rods need once their bodies are in ``spec`` (World.compile calls it
+    after adding the rods): each collision flex's written contact attributes, and the
+    bodies and sites of a cable's ends that the model only reads (a sensor, a camera's
+    target): B_first / B_last ride on the end edges' first vertices and S_first / S_last sit
+    on the end vertices, turned as the cable's first and last bodies were at the start."""
+    for d in decls:
+        flex = spec.flex(d.name)
+        for key, value in d.contact.items():
+            setattr(flex, key, np.asarray(value, dtype=float) if isinstance(value, np.ndarray) else value)
+        if d.initial is None or not d.read:
+            continue
+        frames = geo.body_frames(d.x)
+        n, p = len(d.x), d.prefix
+        for name, vertex, quat, site in ((f"{p}B_first", 0, frames[0], False), (f"{p}S_first", 0, frames[0], True),
+                                         (f"{p}B_last", n - 2, frames[-1], False),
+                                         (f"{p}S_last", n - 1, frames[-1], True)):
+            if name not in d.read:
+                continue
+            spec.delete(spec.site(name) if site else spec.body(name))
+            body = spec.body(f"{d.name}_{vertex}")
+            if site:
+                body.add_site(name=name, quat=quat, group=3, size=[d.material["radius"], 0, 0])
+            else:
+                body.add_body(name=name, quat=quat)

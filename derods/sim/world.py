@@ -165,10 +165,9 @@ class World:
         self._guard = None
         self.mode = None
         self.explicit_dt_limit = None
-        #: Collision flex attributes by rod name, set at compile (rods declared in MJCF).
-        self._flex_settings = {}
-        if not isinstance(scene, (mujoco.MjSpec, type(None))):
-            mjcf_load.add_rods(self, declared)
+        #: The rods the scene file declares (derods.io.mjcf_load), finished at compile.
+        self._declared = [] if isinstance(scene, (mujoco.MjSpec, type(None))) else declared
+        mjcf_load.add_rods(self, self._declared)
 
     # -- building ------------------------------------------------------------
     def add_rod(self, rod: Rod, name: str | None = None, *, start: str = "free", end: str = "free",
@@ -257,7 +256,7 @@ class World:
         collide = (any(g.contype or g.conaffinity for g in self.spec.geoms)
                    or (self.contact.rod_rod and len(self._entries) > 1))
         add_to_spec(self.spec, self._entries, self.contact, collide)
-        mjcf_load.apply_flex_settings(self.spec, self._flex_settings)
+        mjcf_load.finish_spec(self.spec, self._declared)
         t1 = time.perf_counter()
         n_vertices = sum(e.rod.n_vertices for e in self._entries)
         if n_vertices > PROGRESS_FROM:
