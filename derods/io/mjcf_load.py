@@ -111,7 +111,17 @@ def load(path: str, rods_from: str = "composite") -> tuple[mujoco.MjSpec, list[C
     _absolute_dirs(root, os.path.dirname(os.path.abspath(path)))
     if found:
         # The flexcomps' points where MuJoCo's compiler puts them, then the scene without them.
+        option = root.find("option")
+        integrator = None if option is None else option.get("integrator")
+        if option is not None:
+            option.set("integrator", "Euler")  # (MuJoCo compiles flex elasticity for Euler or discrete)
         model = _compile(_spec(root, path), path)
+        if option is not None and integrator is not None:
+            option.set("integrator", integrator)
+        if integrator is not None and integrator.lower() == "discrete":
+            option.set("integrator", "implicitfast")
+            warnings.warn(f"{path}: integrator 'discrete' (MuJoCo's for its own rods) is now 'implicitfast', "
+                          "which derods' rods step with", validation.SceneWarning, stacklevel=3)
         for holder, elem, parent in found:
             decls.append(mjcf_flexcomp.read_flexcomp(elem, parent, model))
             inner.update({k: (mjcf_xml.where(elem), v) for k, v in
