@@ -67,10 +67,11 @@ def _inline_includes(elem: ET.Element, folder: str) -> None:
 
 
 def where(elem: ET.Element, label: str | None = None) -> str:
-    """How messages name an element: ``composite 'a' (cable.xml line 12)``."""
+    """How messages name an element: ``body 'arm' (cable.xml line 12)``, or with ``label``
+    instead of its name: ``composite prefix 'a' (cable.xml line 4)``."""
     src, line = _LINES.get(id(elem), ("", 0))
-    name = label if label is not None else elem.get("name")
-    text = elem.tag + (f" {name!r}" if name else "")
+    name = label if label else (repr(elem.get("name")) if elem.get("name") else "")
+    text = elem.tag + (f" {name}" if name else "")
     return f"{text} ({src} line {line})" if line else text
 
 
