@@ -189,3 +189,17 @@ def test_keyframes_lose_their_qpos_and_keep_their_ctrl(tmp_path):
     with pytest.warns(UserWarning, match=r"keyframes \['twisted'\]: their qpos and qvel"):
         w = World(str(path))
     assert w.model.key("twisted").ctrl.tolist() == [0.002]
+
+
+def test_the_docs_python_example_runs(monkeypatch):
+    """docs/mjcf.md's Python block runs as written from the repository root."""
+    import re
+
+    root = MODELS.parents[1]
+    block, = re.findall(r"```python\n(.*?)```", (root / "docs" / "mjcf.md").read_text(), re.S)
+    monkeypatch.chdir(root)
+    scope: dict = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        exec(compile(block, "docs/mjcf.md", "exec"), scope)
+    assert scope["x"].shape == (41, 3) and np.all(np.isfinite(scope["x"]))

@@ -130,3 +130,13 @@ def test_derods_run_films_a_model_and_refuses_a_bad_one_with_exit_2(tmp_path):
                           "--ctrl", "spin=1", "--out", str(tmp_path / "x.mp4")], capture_output=True, text=True,
                          env=env)
     assert run.returncode == 2 and "no actuator 'spin'; its actuators: ['twist']" in run.stderr
+
+
+def test_view_of_a_model_without_a_display_says_so(monkeypatch, capsys):
+    from derods.apps.cli import main
+
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    assert main(["view", str(ROOT / "mjcf" / "cables" / "belt_motor.xml")]) == 2
+    err = capsys.readouterr().err
+    assert "needs a display" in err and "derods run" in err
