@@ -63,6 +63,15 @@ def test_a_bad_attribute_is_one_line_naming_the_element_and_the_fix(tmp_path, ch
         assert w in text, text
 
 
+def test_two_cables_need_two_prefixes(tmp_path):
+    path = tmp_path / "twins.xml"
+    one = CABLE.format(**GOOD).split("<worldbody>")[1].split("</worldbody>")[0]
+    path.write_text(CABLE.format(**GOOD).replace(one, one + one))
+    with pytest.raises(InvalidInputError, match=r"composite prefix 'c' \(twins.xml line 10\): has the prefix 'c' of "
+                                                r"another cable composite: give each its own prefix"):
+        World(str(path))
+
+
 def test_a_cable_without_stiffness_is_refused(tmp_path):
     path = tmp_path / "floppy.xml"
     path.write_text("""<mujoco><worldbody><composite type="cable" curve="s" count="21 1 1" size="0.5">

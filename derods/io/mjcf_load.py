@@ -70,6 +70,11 @@ def load(path: str, rods_from: str = "composite") -> tuple[mujoco.MjSpec, list[C
                     mjcf_xml.refuse(child, "holds a composite or flexcomp: derods reads them directly in a body or "
                                            "the world body; move it out of the frame")
             elif child.tag == "composite":
+                prefix = child.get("prefix", "")
+                if any(d.prefix == prefix and d.initial is not None for d in decls):
+                    mjcf_xml.refuse(child, f"has the prefix {prefix!r} of another cable composite: give each its own "
+                                           "prefix (their B_first, B_last, ... would clash)",
+                                    f"prefix {prefix!r}" if prefix else None)
                 if bodies and not parent:  # the rod's vertices are placed from its parent's pose, found by name
                     parent = f"{child.get('prefix', '')}cable_parent"
                     bodies[-1].set("name", parent)
