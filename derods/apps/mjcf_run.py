@@ -96,10 +96,33 @@ def build(model_path: str, dt: float | None, rods_from: str, width: int = 0, hei
                          + ("" if rods_from == "flexcomp" else "; for 1D flexcomps pass --rods-from flexcomp") + ")")
     if width and height:
         x = np.concatenate([e.x0 for e in world._entries])
-        for text in prepare_for_video(world.spec, width, height, x, camera is None):
+        for text in prepare_for_video(world.spec, width, height, x, False):
             (notes or (lambda t: None))(text)
+        if camera is None and not any(c.name == "main" for c in world.spec.cameras):
+            pos = add_camera(world.spec, x)
+            (notes or (lambda t: None))(f"the model has no camera 'main'; added one looking at its rods from "
+                                        f"{np.round(pos, 2).tolist()} m")
     world.compile()
     return world
+
+
+def add_camera(spec, x: np.ndarray) -> np.ndarray:
+    """Add a camera "main" to ``spec`` that frames points x [m], shape (n, 3), and the ground
+    below them (z = 0) from the front (-y) and 25 degrees above, at a distance that fits their
+    extent; returns its position."""
+    import math
+
+    lo, hi = x.min(axis=0), x.max(axis=0)
+    lo[2] = min(lo[2], 0.0)
+    target = 0.5 * (lo + hi)
+    dist = 1.6 * float(np.linalg.norm(hi - lo)) + 0.2
+    elev = math.radians(25.0)
+    pos = target + dist * np.array([0.0, -math.cos(elev), math.sin(elev)])
+    fwd = (target - pos) / np.linalg.norm(target - pos)
+    right = np.cross(fwd, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    spec.worldbody.add_camera(name="main", pos=pos, xyaxes=np.concatenate([right, np.cross(right, fwd)]))
+    return pos
 
 
 def _start(world, args) -> None:
