@@ -192,7 +192,8 @@ def main() -> int:
             length = der[name]["rods"][p]["L"]
             gap = np.max(np.linalg.norm(xd - xp, axis=1)) / length
             print(f"| {name} | {p or '(no prefix)'} | {length:.3g} | {100 * gap:.3f} % | "
-                  f"{der[name]['t']:.2f} s / {plug[name]['t']:.2f} s |")
+                  f"{der[name]['t']:.2f} s{'' if der[name]['settled'] else ' (not yet)'} / "
+                  f"{plug[name]['t']:.2f} s{'' if plug[name]['settled'] else ' (not yet)'} |")
     print()
     print("| model | quantity | closed form | derods (error) | other (error) | other |")
     print("|---|---|---|---|---|---|")

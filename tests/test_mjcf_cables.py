@@ -132,6 +132,29 @@ def test_cantilevers_sag_as_the_closed_form(name, rods):
         assert x[0, 2] - x[-1, 2] == pytest.approx(sag, rel=1e-2)
 
 
+def test_a_cables_written_contact_attributes_reach_its_flex():
+    """The helix's geom writes friction, condim, solref, solimp: its collision flex has them;
+    the S-curve's writes none: derods' ContactParams (friction 1, solref 0.005)."""
+    w = world("helix_free")
+    m = w.model
+    f = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_FLEX, "hcable")
+    np.testing.assert_allclose(m.flex_friction[f], [0.8, 0.005, 0.0001])
+    np.testing.assert_allclose(m.flex_solref[f], [0.01, 1.0])
+    np.testing.assert_allclose(m.flex_solimp[f], [0.9, 0.95, 0.001, 0.5, 2.0])
+    assert m.flex_condim[f] == 3
+    m = world("s_curve_slider").model
+    np.testing.assert_allclose(m.flex_friction[0], [1.0, 0.005, 0.0001])
+    np.testing.assert_allclose(m.flex_solref[0], [0.005, 1.0])
+
+
+def test_a_flat_cable_is_naturally_straight():
+    """flat="true": the S-curve starts bent with a straight rest shape (a bending energy)."""
+    rod = world("s_curve_slider").rods[0]
+    assert rod.rest_curvature is None and "bend_isotropic" in rod.active_terms
+    helix = world("helix_free").rods[0]
+    assert helix.rest_curvature is not None
+
+
 def test_a_sensor_on_s_last_reads_the_cables_end():
     """two_cables' framepos sensors name aS_last and bS_last: they read the end vertices."""
     w = world("two_cables", dt=1e-2)

@@ -176,8 +176,8 @@ def vertices(comp: ET.Element, label: str) -> np.ndarray:
 def contact_attrs(elem: ET.Element, shown: ET.Element, label: str | None = None) -> dict:
     """The contact attributes of :data:`CONTACT_ATTRS` written on ``elem`` (a geom with its
     defaults, or a flexcomp's ``<contact>``; ``shown`` names it in messages), as the
-    collision flex takes them: integers, or float arrays (friction padded to 3 with
-    MuJoCo's defaults)."""
+    collision flex takes them: integers, or float arrays (friction padded to 3 and solimp
+    to 5 numbers with MuJoCo's defaults)."""
     contact = {}
     for key, n in CONTACT_ATTRS.items():
         if elem.get(key) is not None:
@@ -185,6 +185,8 @@ def contact_attrs(elem: ET.Element, shown: ET.Element, label: str | None = None)
             contact[key] = int(vals[0]) if key in ("condim", "contype", "conaffinity", "priority") else vals
     if "friction" in contact and len(contact["friction"]) < 3:
         contact["friction"] = np.concatenate([contact["friction"], [0.005, 0.0001][len(contact["friction"]) - 1:]])
+    if "solimp" in contact and len(contact["solimp"]) < 5:
+        contact["solimp"] = np.concatenate([contact["solimp"], [0.5, 2.0]])
     if contact.get("condim", 3) not in (1, 3, 4, 6):
         refuse(shown, f'condim="{contact["condim"]}" must be 1, 3, 4 or 6', label)
     return contact
