@@ -46,6 +46,7 @@ def check_rods_from(scene, rods_from) -> None:
 def load(path: str, rods_from: str = "composite") -> tuple[mujoco.MjSpec, list[CableDecl]]:
     """The scene of the MJCF file ``path`` and the rods it declares (vertices in world frame)."""
     validation.choice("rods_from", rods_from, RODS_FROM)
+    mjcf_xml.forget()
     root = mjcf_xml.read(path)
     world = root.find("worldbody")
     comps = [] if world is None else list(world.iter("composite"))

@@ -40,6 +40,11 @@ def parse(text: str, source: str) -> ET.Element:
         raise validation.InvalidInputError(f"cannot read MJCF scene {source!r}: {err}") from None
 
 
+def forget() -> None:
+    """Drop the noted lines (of the files read before: a new load starts afresh)."""
+    _LINES.clear()
+
+
 def read(path: str) -> ET.Element:
     """The root of the MJCF file ``path``, its ``<include file=...>`` elements replaced by the
     included files' elements (as MuJoCo does, relative to the including file's folder)."""
