@@ -24,7 +24,7 @@ import numpy as np
 
 from .. import validation
 from . import cable_geometry as geo
-from . import mjcf_cable, mjcf_equality, mjcf_flexcomp, mjcf_xml
+from . import mjcf_cable, mjcf_equality, mjcf_flexcomp, mjcf_keys, mjcf_xml
 from .mjcf_cable import CableDecl
 
 #: What World's ``rods_from`` takes: cable composites only (always read: MuJoCo 4 cannot),
@@ -54,10 +54,11 @@ def load(path: str, rods_from: str = "composite") -> tuple[mujoco.MjSpec, list[C
         f for f in world.iter("flexcomp") if mjcf_flexcomp.is_rod(f)]
     if not comps and not flexes:
         try:
-            return mujoco.MjSpec.from_file(path), []
+            return mujoco.MjSpec.from_file(path), Declared()
         except Exception as err:  # MuJoCo raises ValueError with its parser message
             raise validation.InvalidInputError(f"cannot read MJCF scene {path!r}: {err}") from None
     classes = mjcf_xml.default_classes(root)
+    segments = mjcf_keys.layout(root, classes)  # (before the composites leave the tree)
     instances = _plugin_instances(root)
     taken = {e.get("name") for e in root.iter() if e.get("name")}
     decls, inner, found, placed = [], {}, [], []
@@ -113,7 +114,7 @@ def load(path: str, rods_from: str = "composite") -> tuple[mujoco.MjSpec, list[C
     if held_by:
         warnings.warn("; ".join(held_by), validation.SceneWarning, stacklevel=3)
     _drop_cable_plugins(root)
-    _keyframes(root)
+    keys = _keyframes(root, segments, bool(found))
     _absolute_dirs(root, os.path.dirname(os.path.abspath(path)))
     if found:
         # The flexcomps' points where MuJoCo's compiler puts them, then the scene without them.
@@ -136,7 +137,17 @@ def load(path: str, rods_from: str = "composite") -> tuple[mujoco.MjSpec, list[C
     _check_references(root, inner)
     spec = _spec(root, path)
     _to_world(spec, decls)
-    return spec, decls
+    return spec, Declared(decls, keys=keys)
+
+
+class Declared(list):
+    """The rods a file declares (:class:`CableDecl`, in order), and its keyframes' values for
+    the scene's joints (:mod:`derods.io.mjcf_keys`), written into the compiled model by
+    :func:`finish_model`."""
+
+    def __init__(self, decls=(), keys=None):
+        super().__init__(decls)
+        self.keys = keys or {}
 
 
 def _spec(root: ET.Element, path: str) -> mujoco.MjSpec:
@@ -228,20 +239,29 @@ def _referenced(root: ET.Element, decls: list[CableDecl]) -> dict[str, tuple[boo
     return {k: tuple(v) for k, v in out.items()}
 
 
-def _keyframes(root: ET.Element) -> None:
-    """Keyframes keep their time, ctrl, act and mocap poses; their qpos and qvel, laid out for
-    MuJoCo's jointed cable, do not fit derods' rods and are dropped (said once)."""
-    dropped = []
-    for frames in root.findall("keyframe"):
-        for key in frames.findall("key"):
-            for attr in ("qpos", "qvel"):
-                if key.get(attr) is not None:
-                    del key.attrib[attr]
-                    dropped.append(key.get("name") or mjcf_xml.where(key))
-    if dropped:
-        warnings.warn(f"keyframes {sorted(set(dropped))}: their qpos and qvel were laid out for MuJoCo's jointed "
-                      "cable and are dropped (the rods start as declared; time, ctrl, act and mocap poses are "
-                      "kept)", validation.SceneWarning, stacklevel=4)
+def _keyframes(root: ET.Element, segments: list, flexcomps: bool) -> dict:
+    """Keyframes keep their time, ctrl, act and mocap poses, and their qpos and qvel of the
+    scene's joints (laid out for MuJoCo's jointed cable, they are taken apart,
+    :mod:`derods.io.mjcf_keys`); a cable's part is dropped, said where it is not the cable at
+    rest. With flexcomps made rods, qpos and qvel are dropped whole (said)."""
+    if flexcomps:
+        dropped = []
+        for frames in root.findall("keyframe"):
+            for key in frames.findall("key"):
+                for attr in ("qpos", "qvel"):
+                    if key.get(attr) is not None:
+                        del key.attrib[attr]
+                        dropped.append(key.get("name") or mjcf_xml.where(key))
+        if dropped:
+            warnings.warn(f"keyframes {sorted(set(dropped))}: their qpos and qvel are dropped (laid out for "
+                          "MuJoCo's flexcomps; the rods start as declared)", validation.SceneWarning, stacklevel=4)
+        return {}
+    keys, odd = mjcf_keys.split(root, segments)
+    if odd:
+        warnings.warn(f"keyframes {odd}: their cables' joint values (MuJoCo's jointed cable) are dropped, the rods "
+                      "start as declared; the scene's joints, time, ctrl, act and mocap poses are kept",
+                      validation.SceneWarning, stacklevel=4)
+    return keys
 
 
 def _absolute_dirs(root: ET.Element, folder: str) -> None:
@@ -299,6 +319,20 @@ def add_rods(world, decls: list[CableDecl]) -> None:
     damping = max((d.stiffness_damping for d in decls), default=0.0)
     if world.stiffness_damping == 0.0 and damping > 0.0:
         world.stiffness_damping = damping
+
+
+def finish_model(model: mujoco.MjModel, decls: list[CableDecl]) -> None:
+    """Write the declared keyframes' scene-joint values into the compiled ``model`` (World.compile
+    calls it): the joints of the rods' vertex bodies and of B_first / B_last are the rods'."""
+    keys = getattr(decls, "keys", None)
+    if not keys:
+        return
+    rod_bodies = {f"{d.prefix}B_first" for d in decls} | {f"{d.prefix}B_last" for d in decls}
+    rod_bodies |= {f"{d.name}_{i}" for d in decls for i in range(len(d.x))}
+    rod_joints = {j for j in range(model.njnt) if model.body(int(model.jnt_bodyid[j])).name in rod_bodies}
+    if not mjcf_keys.apply(model, keys, rod_joints):
+        warnings.warn("keyframes: the scene's joints differ from the file's in number; their qpos and qvel are not "
+                      "carried over", validation.SceneWarning, stacklevel=3)
 
 
 def finish_spec(spec: mujoco.MjSpec, decls: list[CableDecl]) -> None:

@@ -267,6 +267,7 @@ class World:
             # Rod chunks are attached with their names as they are (see layout._attach).
             warnings.filterwarnings("ignore", message=".*empty prefix may prevent the model")
             model = self.spec.compile()
+        mjcf_load.finish_model(model, self._declared)
         t2 = time.perf_counter()
         data = mujoco.MjData(model)
         mujoco.mj_forward(model, data)  # positions of every body
