@@ -3,6 +3,7 @@
 PYTHON ?= python3
 VENV := .venv
 STAMP := $(VENV)/.installed
+STAMPDOCS := $(VENV)/.installed-docs
 # MuJoCo 4.0 removed the cable plugin: the cable backend runs in a second environment.
 VENV317 := .venv317
 STAMP317 := $(VENV317)/.installed
@@ -10,7 +11,7 @@ STAMP317 := $(VENV317)/.installed
 VENVEL := .venv-elastica
 STAMPEL := $(VENVEL)/.installed
 
-.PHONY: demo core-demo test test317 test-elastica venv317 venv-elastica bench report cosseratbench docs-images docs-editor clean clean-cache
+.PHONY: demo core-demo test docs test317 test-elastica venv317 venv-elastica bench report cosseratbench docs-images docs-editor clean clean-cache
 
 $(STAMP): pyproject.toml
 	@echo "make: creating $(VENV) and installing derods with numpy, scipy, mujoco, numba (a minute or two)"
@@ -31,6 +32,16 @@ core-demo: $(STAMP)
 
 test: $(STAMP)
 	$(VENV)/bin/python -m pytest -q
+
+$(STAMPDOCS): $(STAMP)
+	$(VENV)/bin/python -m pip install --progress-bar off -e '.[docs]'
+	touch $(STAMPDOCS)
+
+# The documentation site (docs/, mkdocs.yml) with its API reference generated from the
+# docstrings, built into site/. Strict: a broken reference, a missing page or a bad link
+# fails the build.
+docs: $(STAMPDOCS)
+	$(VENV)/bin/python -m mkdocs build --strict
 
 bench: $(STAMP)
 	$(VENV)/bin/python benchmarks/bench_core.py
@@ -101,4 +112,4 @@ clean-cache:
 	find derods -name __pycache__ -type d -prune -exec rm -rf {} +
 
 clean: clean-cache
-	rm -rf $(VENV) $(VENV317) $(VENVEL) build *.egg-info
+	rm -rf $(VENV) $(VENV317) $(VENVEL) build site *.egg-info

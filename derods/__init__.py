@@ -4,8 +4,9 @@ The core is pure numpy/scipy: :mod:`derods.geometry` (edges, curvature
 binormal, vertex lengths), :mod:`derods.frames` (Bishop, reference and
 material frames), :mod:`derods.energy` (stretch, bend and twist energies with
 exact gradients and Hessians), :mod:`derods.twist` (the quasistatic material
-frame), :mod:`derods.shapes` (rest shapes and Bezier curves) and
-:mod:`derods.rod` (parameters, state and the active energy terms). Rods in
+frame), :mod:`derods.shapes` (rest shapes and Bezier curves),
+:mod:`derods.material` (the elastic constants), :mod:`derods.rod` (the frozen rod
+and its active energy terms) and :mod:`derods.rod_state` (what changes). Rods in
 MuJoCo: :class:`World` (:mod:`derods.sim`); scenes that ship with derods:
 :mod:`derods.scenes`. Importing derods sets nothing up (no GL backend, no
 environment variables); rendering chooses its backend when first used.
@@ -14,12 +15,20 @@ with an :class:`InvalidInputError` (a ``ValueError``) or :class:`InvalidTypeErro
 a ``TypeError``) that names the parameter, the value and what to pass.
 """
 
+from typing import TYPE_CHECKING
+
 from .energy import Configuration, Derivatives
-from .rod import Material, Rod, RodState
+from .material import Material
+from .rod import Rod
+from .rod_state import RodState
 from .stencil import Hessian
 from .twist import TwistBoundary
 from .validation import InvalidIndexError, InvalidInputError, InvalidTypeError, SceneWarning
 from . import frames, geometry, shapes
+
+if TYPE_CHECKING:  # served lazily by __getattr__ below; named here for type checkers and the API reference
+    from .sim.divergence import DivergenceError
+    from .sim.world import MODES, ContactParams, World
 
 __version__ = "0.1.0"
 

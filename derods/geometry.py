@@ -131,7 +131,7 @@ class JointGeometry:
 
     @property
     def turning_angle(self) -> np.ndarray:
-        """Turning angle phi in [0, pi] [rad], shape (..., n_joints)."""
+        """Turning angle phi [rad], in [0, pi], shape (..., n_joints)."""
         return 2.0 * np.arctan(0.5 * norm(self.kb))
 
     def jacobians(self) -> tuple[np.ndarray, np.ndarray]:

@@ -24,7 +24,8 @@ import mujoco
 import numpy as np
 
 from . import validation, scenes
-from .rod import Material, Rod
+from .material import Material
+from .rod import Rod
 from .sim.world import ContactParams, World
 
 #: The head scene, its mocap head body, its skull geom and the site of the neck pivot.
@@ -241,7 +242,7 @@ def build(hair: Hair = Hair(), dt: float = 1e-2, strand_contact: bool = False, f
 
 def drive(world: World, motion: Motion):
     """A ``before_step(world)`` callback that poses the head for ``motion`` at the world's
-    time (call it before every step; :func:`derods.viz.render.film` does)."""
+    time (call it before every step; :func:`derods.viz.filming.film` does)."""
     model = world.model
     body = model.body(HEAD)
     mocap = int(model.body_mocapid[body.id])

@@ -1,8 +1,9 @@
 """A discrete elastic rod: frozen parameters, a separate state, and its energy.
 
-:class:`Material` holds the physical constants, :class:`Rod` the rest shape and
-everything derived from it that stays fixed during a run, :class:`RodState`
-what changes every step (positions, reference frames, twist angles). The rod
+:class:`Rod` holds the rest shape and everything derived from it that stays fixed
+during a run; the physical constants are a :class:`~derods.material.Material`
+(:mod:`derods.material`), what changes every step (positions, reference frames, twist
+angles) a :class:`~derods.rod_state.RodState` (:mod:`derods.rod_state`). The rod
 decides once, from its parameters, which energy terms it needs
 (:attr:`Rod.active_terms`) and evaluates only those.
 
@@ -19,93 +20,13 @@ import numpy as np
 
 from . import energy, frames, geometry, stencil, twist, validation
 from .energy import Configuration, Derivatives
-
+from .material import INEXTENSIBLE_MODULUS, Material
+from .rod_state import RodState, StepTerms
 from .twist import TwistBoundary
 
-
-#: Young's modulus [Pa] of the stretching term of an "inextensible" rod: the
-#: weight of a 1 m rod of density 1000 kg/m^3 then strains it by about 1e-6.
-INEXTENSIBLE_MODULUS = 1e10
-#: The stiffest modulus [Pa] a Material accepts: above any material (diamond: 1.2e12 Pa);
-#: an implicit step loses positive definiteness near 1e22 Pa.
-MAX_MODULUS = 1e13
 #: The sharpest turn [rad] a rod may take at a vertex: two edges folded back onto each
 #: other (pi) have an infinite discrete curvature.
 MAX_TURN = math.radians(179.0)
-
-
-@dataclass(frozen=True)
-class Material:
-    """Elastic and inertial constants of a rod with an elliptic (default: circular) section.
-
-    young: Young's modulus E [Pa].
-    density: rho [kg/m^3].
-    radius: semi-axis a of the section along the first material director m1 [m].
-    radius2: semi-axis b along m2 [m]; None for a circle (b = a).
-    shear: shear modulus G [Pa]; None to use young / (2 (1 + poisson)).
-    poisson: Poisson's ratio nu, used only when shear is None (-1 < nu <= 0.5).
-    """
-
-    young: float
-    density: float = 1000.0
-    radius: float = 0.01
-    radius2: float | None = None
-    shear: float | None = None
-    poisson: float = 0.5
-
-    def __post_init__(self):
-        validation.material(self)
-
-    @property
-    def b(self) -> float:
-        return self.radius if self.radius2 is None else self.radius2
-
-    @property
-    def shear_modulus(self) -> float:
-        """G [Pa]."""
-        return self.shear if self.shear is not None else self.young / (2.0 * (1.0 + self.poisson))
-
-    @property
-    def area(self) -> float:
-        """Cross-section area A = pi a b [m^2]."""
-        return np.pi * self.radius * self.b
-
-    @property
-    def second_moments(self) -> tuple[float, float]:
-        """(I1, I2) [m^4]: about m1 (bending in the t-m2 plane) and about m2."""
-        a, b = self.radius, self.b
-        return np.pi * a * b**3 / 4.0, np.pi * a**3 * b / 4.0
-
-    @property
-    def bend_stiffness(self) -> tuple[float, float]:
-        """(B1, B2) = (E I1, E I2) [N m^2]."""
-        i1, i2 = self.second_moments
-        return self.young * i1, self.young * i2
-
-    @property
-    def alpha(self) -> float:
-        """Isotropic bending stiffness E I [N m^2] (the mean of B1 and B2)."""
-        return 0.5 * sum(self.bend_stiffness)
-
-    @property
-    def beta(self) -> float:
-        """Twisting stiffness G J [N m^2], J = pi a^3 b^3 / (a^2 + b^2) (2 I for a circle)."""
-        a, b = self.radius, self.b
-        return self.shear_modulus * np.pi * a**3 * b**3 / (a**2 + b**2)
-
-    @property
-    def isotropic(self) -> bool:
-        return self.radius2 is None or self.radius2 == self.radius
-
-    @property
-    def stretch_stiffness(self) -> float:
-        """E A [N]."""
-        return self.young * self.area
-
-    @property
-    def line_density(self) -> float:
-        """Mass per length rho A [kg/m]."""
-        return self.density * self.area
 
 
 def check_turns(name: str, x: np.ndarray, closed: bool) -> None:
@@ -121,50 +42,6 @@ def check_turns(name: str, x: np.ndarray, closed: bool) -> None:
             f"{name} turns by {math.degrees(float(turn[idx])):.1f} degrees at vertex {k}: its edges fold back onto each "
             f"other, where a discrete rod's curvature is infinite; round the fold over several edges (at most "
             f"{math.degrees(MAX_TURN):.0f} degrees per vertex)")
-
-
-@dataclass
-class RodState:
-    """What changes during a run.
-
-    x: vertex positions [m], shape (..., n_vertices, 3).
-    u: reference directors, perpendicular to ``t``, shape (..., n_edges, 3).
-    t: unit tangents at which ``u`` was last transported, shape (..., n_edges, 3).
-    theta: twist angles of the material frames [rad], shape (..., n_edges).
-    """
-
-    x: np.ndarray
-    u: np.ndarray
-    t: np.ndarray
-    theta: np.ndarray
-
-
-@dataclass
-class StepTerms:
-    """What one implicit step needs from a rod, from :meth:`Rod.step_terms`; every field
-    is set on every path.
-
-    state: the new state (frames transported, twist solved).
-    energy: elastic energy [J], shape (...).
-    grad_x: dE/dx [N], shape (..., n_vertices, 3) (the elastic force is minus this).
-    hessian_banded: positive semi-definite Hessian of stretch + bending in the lower
-        banded form of :func:`scipy.linalg.solveh_banded`, shape (..., 9, 3 n_vertices);
-        for a ring, with its vertices in :func:`derods.stencil.ring_order` (where its
-        Hessian is banded), shape (..., RING_BANDWIDTH + 1, 3 n_vertices).
-    twist: the reduced twist term (:class:`derods.twist.ReducedTwist`), whose Hessian
-        c g g^T is a rank-one update of ``hessian_banded``; zero (lam = c = 0, g = 0)
-        for a rod without the twist term, or whose twist is solved by Newton's method
-        (anisotropic or naturally curved rods: their twist stiffness is not rank one).
-    grad_theta: dE/dtheta [N m] at the solved twist angles, shape (..., n_edges): zero
-        on free angles; on the held end angles, the moments the clamps resist.
-    """
-
-    state: RodState
-    energy: np.ndarray
-    grad_x: np.ndarray
-    hessian_banded: np.ndarray
-    twist: twist.ReducedTwist
-    grad_theta: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -360,8 +237,6 @@ class Rod:
         """True for an isotropic, naturally straight rod: its quasistatic twist is solved in
         closed form and enters as a reduced, rank-one term (others need Newton's method)."""
         return "bend_material" not in self.active_terms
-
-    has_kernel = True  #: every rod's step_terms runs in the compiled kernel
 
     def step_terms(self, state: RodState, x: np.ndarray, use_kernel: bool | None = None,
                    boundary: TwistBoundary | None = None) -> StepTerms:

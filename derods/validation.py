@@ -236,7 +236,7 @@ INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")
 
 def material(m) -> None:
     """A :class:`~derods.Material`'s constants, each named with its unit."""
-    from .rod import MAX_MODULUS
+    from .material import MAX_MODULUS
 
     real("young", m.young, "Pa", gt=0, example=1e7)
     real("density", m.density, "kg/m^3", gt=0, example=1000.0)
@@ -271,7 +271,7 @@ def twist_boundary(b) -> None:
 
 def rod_fields(rod) -> np.ndarray:
     """A :class:`~derods.Rod`'s parameters but its shape's turns; returns rest_x as floats."""
-    from .rod import Material
+    from .material import Material
     from .twist import TwistBoundary
 
     instance("material", rod.material, Material, "pass derods.Material(young=...)")
@@ -333,12 +333,13 @@ def contact_params(c) -> None:
 
 def world_options(scene, dt, gravity, mode, mass_damping, stiffness_damping, contact, integrator, strain_limit,
                   scene_checks) -> None:
-    """World's arguments (the scene is read by World itself)."""
+    """World's arguments (the scene is read by :func:`derods.sim.inputs.scene_spec`)."""
     import os
 
     import mujoco
 
-    from .sim.world import MODES, ContactParams
+    from .sim.contact_params import ContactParams
+    from .sim.inputs import MODES
 
     if scene is not None and not isinstance(scene, (str, os.PathLike, mujoco.MjSpec)):
         refuse("scene", "None, a path to an MJCF file or a mujoco.MjSpec", scene, "pass a path such as 'scene.xml'",
@@ -410,7 +411,7 @@ def rod_index(rod, names: list):
 def rod_state(rod, state, name: str = "state") -> None:
     """A :class:`~derods.RodState` of ``rod``'s sizes (x (..., n_vertices, 3), u and t
     (..., n_edges, 3), theta (..., n_edges))."""
-    from .rod import RodState
+    from .rod_state import RodState
 
     instance(name, state, RodState, "pass rod.rest_state() or a state from rod.advance()")
     nv, ne = rod.n_vertices, rod.n_edges

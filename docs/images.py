@@ -17,7 +17,7 @@ import numpy as np
 
 from derods import scenes
 from derods.apps import drop
-from derods.viz import render
+from derods.viz import output, render
 
 DOCS = pathlib.Path(__file__).resolve().parent
 
@@ -35,7 +35,7 @@ def scene_sheet(out: pathlib.Path) -> None:
     while len(tiles) % 4:
         tiles.append(np.full_like(tiles[0], 255))
     rows = [np.concatenate(tiles[i:i + 4], axis=1) for i in range(0, len(tiles), 4)]
-    render.write_image(out, np.concatenate(rows, axis=0))
+    output.write_image(out, np.concatenate(rows, axis=0))
 
 
 def quality_pair(out: pathlib.Path) -> dict:
@@ -53,7 +53,7 @@ def quality_pair(out: pathlib.Path) -> dict:
         finally:
             cam.close()
         images.append(img)
-    render.write_image(out, np.concatenate(images, axis=1)[::2, ::2])
+    output.write_image(out, np.concatenate(images, axis=1)[::2, ::2])
     return costs
 
 

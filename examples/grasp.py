@@ -24,7 +24,7 @@ import numpy as np
 
 import derods
 from derods import ContactParams, World, scenes, shapes
-from derods.viz import render
+from derods.viz import filming
 
 #: The cable: 0.6 m, 6 mm radius, E = 2e7 Pa (a soft rubber cable), 40 edges.
 CABLE = dict(length=0.6, n_edges=40)
@@ -144,7 +144,7 @@ def run(seconds: float | None = None, out: pathlib.Path | None = None, size=(128
             grasp(world)
             world.step()
     else:
-        render.film(world, out, seconds, 30.0, size[0], size[1], "main", before_step=grasp, progress=False)
+        filming.film(world, out, seconds, 30.0, size[0], size[1], "main", before_step=grasp, progress=False)
     out = grasp.summary(empty_gripper_force())
     out["cable"] = world.positions("cable").copy()
     return out

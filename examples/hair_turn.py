@@ -17,7 +17,7 @@ import argparse
 import pathlib
 
 from derods import hair
-from derods.viz import render
+from derods.viz import filming
 
 
 def main(argv=None):
@@ -42,8 +42,8 @@ def main(argv=None):
 
     seconds = 0.4 if args.test else 3.6
     size = (320, 180) if args.test else (960, 540)
-    render.film(world, out / "hair_turn.mp4", seconds, 25.0, size[0], size[1], "main", before_step=drive,
-                after_frame=report, lines=True, label="hair turn")
+    filming.film(world, out / "hair_turn.mp4", seconds, 25.0, size[0], size[1], "main", before_step=drive,
+                 after_frame=report, lines=True, label="hair turn")
     print(f"wrote {out / 'hair_turn.mp4'}")
 
 

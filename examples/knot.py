@@ -18,7 +18,7 @@ import mujoco
 import numpy as np
 
 from derods import shapes
-from derods.viz import render
+from derods.viz import filming, render
 from derods import ContactParams, World
 
 
@@ -57,8 +57,8 @@ def main(argv=None):
     cam.distance, cam.azimuth, cam.elevation = 0.5, 90.0, -70.0
     seconds = 0.3 if args.test else 2.0
     size = (320, 180) if args.test else (1280, 720)
-    render.film(world, out / "knot.mp4", seconds, 30.0, size[0], size[1], cam, before_step=pull,
-                progress=not args.test, label="knot")
+    filming.film(world, out / "knot.mp4", seconds, 30.0, size[0], size[1], cam, before_step=pull,
+                 progress=not args.test, label="knot")
     p = world.positions("rope")
     e0, e1 = p[:-1], p[1:]
     i, j = np.triu_indices(len(e0), k=3)

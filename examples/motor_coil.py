@@ -21,7 +21,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from derods import shapes
-from derods.viz import render
+from derods.viz import filming, render
 from derods import ContactParams, World
 
 
@@ -71,8 +71,8 @@ def main(argv=None):
         w.data.ctrl[0] = 2 * math.pi * turns * min(1.0, w.time / (0.75 * seconds))
 
     size = (320, 180) if args.test else (1280, 720)
-    render.film(world, out / "motor_coil.mp4", seconds, 30.0, size[0], size[1], cam,
-                before_step=wind, progress=not args.test, label="motor coil")
+    filming.film(world, out / "motor_coil.mp4", seconds, 30.0, size[0], size[1], cam,
+                 before_step=wind, progress=not args.test, label="motor coil")
     x = world.positions("rod")
     closed = np.concatenate([x, [[gap, 0, -5.0], [0, 0, -5.0]]])  # closed far below: writhe of the rod
     print(f"{out / 'motor_coil.mp4'}: motor turned {world.data.qpos[0] / (2 * math.pi):.2f} turns, "

@@ -11,7 +11,7 @@ import pytest
 import rods
 
 import derods
-from derods import bench
+from derods import bench, reference
 from derods.bench import CaseParams
 from derods.sim import generalized_alpha as ga
 from test_knot import tighten_knot
@@ -103,14 +103,14 @@ def test_servo_turned_clamp_twists_the_rod():
     world.step(300)
     turned = float(world.data.qpos[world.model.joint("turn").qposadr[0]])
     assert turned == pytest.approx(4 * math.pi, rel=1e-3)
-    assert world.data.actuator_force[0] == pytest.approx(mat.beta * turned / 1.0, rel=0.02)
+    assert world.data.actuator_force[0] == pytest.approx(reference.twist_torque(mat.beta, turned, 1.0), rel=0.02)
 
 
 def test_michell_threshold_holds():
     """A twisted ring (beta = alpha) stays planar at 0.97 Theta_c and buckles at 1.03
     Theta_c in the alpha mode too (the implicit mode's test, tests/test_rings.py)."""
     mat = derods.Material(young=1e7, radius=0.01, shear=1e7 / 2)
-    theta_c = 2 * math.pi * math.sqrt(3) * mat.alpha / mat.beta
+    theta_c = reference.michell_critical_twist(mat.alpha, mat.beta)
     assert not rods.buckles(rods.twisted_ring(mat, 50, 0.97 * theta_c, mode="alpha"), mat)
     assert rods.buckles(rods.twisted_ring(mat, 50, 1.03 * theta_c, mode="alpha"), mat)
 

@@ -1,4 +1,4 @@
-"""Benchmark records of derods/bench.py and the `derods bench` command."""
+"""Benchmark records (derods/bench/: cases, measures, command) and the `derods bench` command."""
 
 from __future__ import annotations
 
@@ -66,10 +66,10 @@ def test_closest_approach_sees_a_ring_pass_through_itself():
     t = np.linspace(0, 2 * math.pi, 80, endpoint=False)
     eight = np.stack([np.sin(t), np.sin(t) * np.cos(t), 0 * t], axis=1)
     h = np.linalg.norm(np.diff(eight, axis=0), axis=1).max()
-    assert bench.cases._closest_approach(eight, h) < h / 8
+    assert bench.measures.closest_approach(eight, h) < h / 8
     circle = np.stack([np.cos(t), np.sin(t), 0 * t], axis=1)
     h = 2 * math.sin(math.pi / 80)
-    assert 3 * h * 0.99 < bench.cases._closest_approach(circle, h) < 3.3 * h
+    assert 3 * h * 0.99 < bench.measures.closest_approach(circle, h) < 3.3 * h
 
 
 @pytest.mark.parametrize("dt,tol", [(1e-2, 0.05), (1e-3, 0.01)])
@@ -126,7 +126,7 @@ def test_tip_mass_frequency_closed_form():
     """The coupling case's reference: mu = 0 gives the bare cantilever's 1.8751; a heavy
     tip tends to the massless spring 3 alpha / L^3 with mass m + 33/140 of the rod's
     (beta L)^4 -> 3 / (mu + 33/140), within 1e-4 at mu = 1000."""
-    from derods.bench.coupling import tip_mass_root
+    from derods.reference import tip_mass_root
 
     assert tip_mass_root(0.0) == pytest.approx(1.8751040687, abs=1e-9)
     for mu in (10.0, 1000.0):

@@ -1,4 +1,4 @@
-"""Backends, sweeps and the report (derods/native.py, derods/compare.py)."""
+"""Backends, sweeps and the report (derods/bench/native.py, derods/bench/sweep.py, derods/bench/report.py)."""
 
 from __future__ import annotations
 

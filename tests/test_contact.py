@@ -1,4 +1,5 @@
-"""Contact solved in the implicit metric (derods/sim/contact.py, derods/_numba/contact.py)."""
+"""Contact solved in the implicit metric (derods/sim/contact.py, derods/_numba/contact.py; the rows and their
+solve taken apart through tests/oracles.py)."""
 
 from __future__ import annotations
 
@@ -6,11 +7,11 @@ import mujoco
 import numpy as np
 import pytest
 import scipy.optimize
+from oracles import ContactRows, a_matvec, contact_solve, implicit_system
 
 import derods
 from derods import scenes, shapes
 from derods.sim import contact
-from derods.sim.implicit import ImplicitSystem
 from derods import World
 
 
@@ -22,8 +23,8 @@ def small_problem(rng, n_vertices=6, n_rows=7, n_far=0):
     for d in range(9):
         k[d, : n - d] = np.diag(full, -d)
     k[0] += 5.0  # keep the banded part positive definite
-    system = ImplicitSystem.from_blocks(1e-2, np.array([0, n]), [k], [(rng.normal(size=n), 2.0)],
-                                        rng.uniform(0.5, 1.5, size=n), 0.3, 1e-3)
+    system = implicit_system(1e-2, np.array([0, n]), [k], [(rng.normal(size=n), 2.0)],
+                             rng.uniform(0.5, 1.5, size=n), 0.3, 1e-3)
     col0 = rng.integers(0, n - 6, size=n_rows)
     jw = np.zeros((n_rows, 9))
     jw[:, :6] = rng.normal(size=(n_rows, 6))
@@ -33,7 +34,7 @@ def small_problem(rng, n_vertices=6, n_rows=7, n_far=0):
         for r in range(n_far):  # a contact between the first and the last vertex
             jf[r, :3], jf[r, -3:] = rng.normal(size=3), rng.normal(size=3)
     k = n_rows + n_far
-    rows = contact.Rows(col0, jw, rng.normal(size=k) * 5, rng.uniform(1, 50, size=k), np.arange(k), jf=jf)
+    rows = ContactRows(col0, jw, rng.normal(size=k) * 5, rng.uniform(1, 50, size=k), np.arange(k), jf=jf)
     return system, rows, rng.normal(size=n)
 
 
@@ -45,17 +46,17 @@ def test_newton_finds_the_minimum_of_mujocos_primal_problem(n_rows, n_far):
     every row is one (a self-contact and nothing else: B must still be factored)."""
     rng = np.random.default_rng(0)
     system, rows, a0 = small_problem(rng, n_rows=n_rows, n_far=n_far)
-    a, lam, iters = contact.solve(system, a0, rows)
+    a, lam, iters = contact_solve(system, a0, rows)
     assert np.all(lam >= 0) and np.any(lam > 0) and np.any(lam == 0)
 
     def f(x):
         r = np.minimum(rows.apply(x) - rows.aref, 0.0)
-        return 0.5 * (x - a0) @ system.a_matvec(x - a0) + 0.5 * np.sum(rows.d * r * r)
+        return 0.5 * (x - a0) @ a_matvec(system, x - a0) + 0.5 * np.sum(rows.d * r * r)
 
     ref = scipy.optimize.minimize(f, a0, method="BFGS", options={"gtol": 1e-12, "maxiter": 10000}).x
     np.testing.assert_allclose(a, ref, rtol=1e-5, atol=1e-7 * np.abs(ref).max())
-    grad = system.a_matvec(a - a0) - rows.transpose_apply(lam, system.n)
-    np.testing.assert_allclose(grad, 0.0, atol=1e-9 * np.abs(system.a_matvec(a0)).max())
+    grad = a_matvec(system, a - a0) - rows.transpose_apply(lam, system.n)
+    np.testing.assert_allclose(grad, 0.0, atol=1e-9 * np.abs(a_matvec(system, a0)).max())
     assert iters < 30
 
 

@@ -1,4 +1,4 @@
-"""`derods drop`: scenes, headless videos written atomically, and its errors (derods/drop.py)."""
+"""`derods drop`: scenes, headless videos written atomically, and its errors (derods/apps/drop.py)."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ import pytest
 from derods import scenes
 from derods.apps import drop
 from derods.sim import integrators
-from derods.viz import render
+from derods.viz import output, render
 from derods import DivergenceError
 from derods.__main__ import main
 
@@ -36,7 +36,7 @@ def test_drop_writes_a_video_of_falling_rods(tmp_path, capsys):
     assert main(["drop", "--scene", "box", "--out", str(out)] + SMALL) == 0
     # --seconds 0.6 at --fps 10 and --dt 5e-3: exactly 0.6 s simulated, frames at 0, 0.1, ..., 0.6 s.
     assert "7 frames, 0.6 s simulated (120 steps" in capsys.readouterr().out
-    video = render.mediapy().read_video(out)
+    video = output.mediapy().read_video(out)
     assert video.shape == (7, 180, 320, 3)
     assert video.metadata.fps == pytest.approx(10.0)
     # The rods fall: frames change over time.
@@ -85,7 +85,7 @@ def test_a_video_aborted_before_its_first_frame_is_silent(tmp_path, caplog):
     abort says nothing of the empty video (it is deleted), and leaves nothing behind."""
     out = tmp_path / "x.mp4"
     with pytest.raises(KeyboardInterrupt):
-        with render.VideoWriter(out, (64, 64), 10):
+        with output.VideoWriter(out, (64, 64), 10):
             raise KeyboardInterrupt
     assert list(tmp_path.iterdir()) == []
     assert not [r for r in caplog.records if r.levelno >= logging.WARNING], caplog.text
@@ -150,7 +150,7 @@ def test_rings_bezier_and_a_still(tmp_path, capsys):
     out, still = tmp_path / "ring.mp4", tmp_path / "ring.png"
     assert main(["drop", "--shape", "ring", "--overlay", "twist", "--still", str(still), "--out", str(out)]
                 + SMALL) == 0
-    img = render.mediapy().read_image(still)
+    img = output.mediapy().read_image(still)
     assert img.shape == (180, 320, 3)
     world = drop.build_world(drop.DropParams(shape="ring", rods=1, n_edges=20))
     assert world.rods[0].closed
@@ -176,7 +176,7 @@ def test_a_plain_user_scene_gets_what_its_video_needs(tmp_path, capsys):
     assert main(["drop", "--scene", str(scene), "--out", str(out)] + small) == 0
     err = capsys.readouterr().err
     assert "made it 480x270" in err and "no light" in err and "no camera 'main'" in err
-    video = render.mediapy().read_video(out)
+    video = output.mediapy().read_video(out)
     assert video.shape[1:] == (270, 480, 3)
     assert video[-1].mean() > 60  # lit: the floor is grey, not black
     assert rod_pixels(video[0]) > 20

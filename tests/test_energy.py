@@ -9,7 +9,7 @@ import scipy.linalg
 from derods import energy as en
 from derods import frames as fr
 from derods import geometry as ge
-from derods import shapes
+from derods import reference, shapes
 from fdcheck import (
     GRAD_RTOL,
     HESS_FROM_ENERGY_RTOL,
@@ -170,7 +170,7 @@ def test_internal_forces_balance(closed, term):
 @pytest.mark.parametrize("n", [50, 100, 200])
 def test_circle_bending_energy(n):
     """A naturally straight rod bent into a circle of radius R stores pi alpha / R
-    (the continuum (1/2) alpha (1/R)^2 2 pi R; REFERENCE.md case 3). On the inscribed
+    (the continuum (1/2) alpha (1/R)^2 2 pi R: derods.reference.circle_bending_energy). On the inscribed
     regular n-gon |kb| = 2 tan(pi/n) and l = 4 R sin(pi/n), so E / (pi alpha / R) =
     tan(x)^2 / (x sin x) = 1 + (5/6) x^2 + O(x^4), x = pi/n: 0.33 % at n = 50."""
     radius, alpha = 0.3, 2.0
@@ -178,7 +178,7 @@ def test_circle_bending_energy(n):
     rest_len = ge.norm(ge.edges(x, True))
     cfg = en.Configuration(x, True)
     e = float(en.bend_isotropic(cfg, alpha, ge.voronoi_len(rest_len, True), 0).energy)
-    exact = np.pi * alpha / radius
+    exact = reference.circle_bending_energy(alpha, radius)
     rel = abs(e - exact) / exact
     assert rel < 0.01
     np.testing.assert_allclose(rel, 5 / 6 * (np.pi / n) ** 2, rtol=0.01)  # second order

@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from derods.viz import render
+from derods.viz import output
 
 ROOT = pathlib.Path(__file__).parents[1]
 EXAMPLES = {
@@ -34,7 +34,7 @@ def test_example_runs_in_test_mode(name, tmp_path):
     result = subprocess.run([sys.executable, str(script), "--test", "--out", str(tmp_path)],
                             capture_output=True, text=True, timeout=600)
     assert result.returncode == 0, result.stderr[-2000:]
-    mediapy = render.mediapy()
+    mediapy = output.mediapy()
     for out in EXAMPLES[name]:
         path = tmp_path / out
         assert path.is_file(), f"{name} did not write {out}"

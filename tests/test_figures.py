@@ -1,11 +1,11 @@
-"""Still pictures (derods/figures.py): `derods frames` and `derods michell`."""
+"""Still pictures (derods/viz/figures.py): `derods frames` and `derods michell`."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from derods.viz import figures, render
+from derods.viz import figures, output
 from derods.__main__ import main
 
 
@@ -15,7 +15,7 @@ def colour_pixels(img, rgb, tol=60):
 
 
 def read(path):
-    return render.mediapy().read_image(path)
+    return output.mediapy().read_image(path)
 
 
 @pytest.mark.parametrize("continuity", ["C0", "C1"])

@@ -1,15 +1,16 @@
 """Static friction: a rod resting on an incline below its friction angle stays put.
 
-Coulomb (REFERENCE.md case 9): a body on a plane tilted by theta holds while
+Coulomb: a body on a plane tilted by theta holds while
 tan(theta) < mu, without creeping. cosseratbench's capstan asks the same of a
 heavy rope over a cylinder (below the holding overhang it must move < 1 mm in
 2 s); derods' rope creeps there, and this is the smallest case that shows it.
 
 What is known (E = 3e5 Pa, dt = 1e-3, ContactParams' defaults): MuJoCo's own solve
 of the same rows (mode="projection", bare vertex masses) creeps 1.6 mm/s, the soft
-friction of its impedance d = 0.9. derods' rows creep 7.7 mm/s: Rows.rescale keeps
-MuJoCo's R / diagA but puts the Delassus diagonal of the implicit metric under it
-(68,400 here, the bare masses' exact one is 69,400), while MuJoCo's diagA for these
+friction of its impedance d = 0.9. derods' rows creep 7.7 mm/s: their weights
+(derods/_numba/contact.py: row_weights) keep MuJoCo's R / diagA but put the Delassus
+diagonal of the implicit metric under them (68,400 here, the bare masses' exact one
+is 69,400), while MuJoCo's diagA for these
 flex contacts is an approximation 5.6x lower (12,490), so derods' rows come out 5.5x
 softer than MuJoCo's. With the impedance raised to 0.9999 the creep falls only to
 3.3-3.8 mm/s (solref 2-5 ms), and there the friction cone is the cause: of each

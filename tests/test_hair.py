@@ -125,7 +125,7 @@ def test_derods_hair_writes_a_video_and_a_still(tmp_path, capsys):
     """The command with small settings: exit 0, the video and the PNG, a summary line
     with the build time, penetration and strain; strands are drawn as lines."""
     from derods.__main__ import main
-    from derods.viz import render
+    from derods.viz import output
 
     out, still = tmp_path / "h.mp4", tmp_path / "h.png"
     assert main(["hair", "--strands", "40", "--vertices", "16", "--seconds", "0.4", "--fps", "10", "--width", "320",
@@ -133,7 +133,7 @@ def test_derods_hair_writes_a_video_and_a_still(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "40 strands x 16 vertices built in" in text and "deepest strand in the skull" in text
     assert out.stat().st_size > 1000
-    img = render.mediapy().read_image(still)
+    img = output.mediapy().read_image(still)
     assert img.shape == (180, 320, 3)
     # Hair-coloured pixels (red > green > blue, darkish): the strands are drawn.
     r, g, b = (img[..., k].astype(int) for k in range(3))

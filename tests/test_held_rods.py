@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from derods import ContactParams, DivergenceError, Material, Rod, World, shapes
+from derods import ContactParams, DivergenceError, Material, Rod, World, reference, shapes
 from derods.bench import held
 
 #: The cable of the drag and reaction tests: r = 3 mm, rho = 1000 kg/m^3 (0.0283 kg/m).
@@ -110,7 +110,7 @@ def test_the_reaction_of_a_rod_clamped_to_a_held_body_is_its_weight(dt):
       <joint name="z" type="slide" axis="0 0 1" stiffness="1000" damping="63"/>
       <geom type="box" size="0.02 0.02 0.02" mass="1" contype="0" conaffinity="0"/></body></worldbody></mujoco>"""
     mat = Material(young=1e9, radius=RADIUS)
-    rate = 1.875**2 * math.sqrt(mat.alpha / (mat.line_density * 0.4**4))
+    rate = 2 * math.pi * reference.cantilever_frequency(mat.alpha, mat.line_density, 0.4)
     world = World(mujoco.MjSpec.from_string(xml), dt=dt, mass_damping=1.4 * rate)
     world.add_rod(Rod(shapes.cantilever(0.4, 32, start=(0.0, 0.0, 1.0)), mat), "rod", start="clamp",
                   start_body="holder")

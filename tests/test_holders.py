@@ -6,7 +6,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from derods import bench
+from derods import bench, reference
 from derods.bench import coupling
 from derods.sim import holders, trees
 
@@ -59,13 +59,13 @@ def test_a_damped_holder_moves_as_mujoco_integrates_it():
     assert world._step.holders
     rest = world.positions("rod").copy()
     coupling._bend(world, rest, p.length)
-    ref = coupling.tip_mass_frequency(p.material.alpha, p.material.line_density, p.length, 1.0)
+    ref = reference.tip_mass_frequency(p.material.alpha, p.material.line_density, p.length, 1.0)
     n = int(3.25 / ref / p.dt)
     z = np.empty(n)
     for k in range(n):
         world.step()
         z[k] = world.positions("rod")[-1, 2] - 1.0
-    from derods.bench.cases import crossing_frequency
+    from derods.bench.measures import crossing_frequency
 
     assert crossing_frequency(z, p.dt) == pytest.approx(ref, rel=1e-2)
 

@@ -1,13 +1,13 @@
-"""Fast projection (derods/sim/projection.py, derods/_numba/projection.py) and World(mode="projection")."""
+"""Fast projection (derods/_numba/projection.py, through tests/oracles.py) and World(mode="projection")."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import rods
+from oracles import project
 
 import derods
-from derods.sim.projection import project
 
 
 def test_projection_restores_edge_lengths_and_keeps_held_vertices():

@@ -14,7 +14,7 @@ import pytest
 import rods
 
 import derods
-from derods import bench, frames, geometry, shapes
+from derods import bench, frames, geometry, reference, shapes
 from derods.bench import native
 from derods.bench import CaseParams
 from derods import World
@@ -34,7 +34,7 @@ def test_michell_threshold_brackets_the_critical_twist(beta_over_alpha):
     3 % of Michell's (the bisection of the bench's michell case measures +1.27 % for every
     ratio and any E, converging as 1/n^2: +3.61 % at n = 30, +0.29 % at n = 100)."""
     mat = ring_material(beta_over_alpha)
-    theta_c = 2 * math.pi * math.sqrt(3) * mat.alpha / mat.beta
+    theta_c = reference.michell_critical_twist(mat.alpha, mat.beta)
     assert not rods.buckles(rods.twisted_ring(mat, 50, 0.97 * theta_c), mat)
     assert rods.buckles(rods.twisted_ring(mat, 50, 1.03 * theta_c), mat)
 
@@ -97,7 +97,7 @@ def test_linking_number_is_conserved_while_the_ring_buckles():
     which has no self-contact here, passes through itself."""
     n, radius = 50, 0.2
     mat = derods.Material(young=E, radius=RADIUS, shear=E / 2)
-    total = 1.3 * 2 * math.pi * math.sqrt(3) * mat.alpha / mat.beta
+    total = 1.3 * reference.michell_critical_twist(mat.alpha, mat.beta)
     x = shapes.circle(radius, n)
     rod = derods.Rod(x, mat, closed=True, natural_curvature=False,
                      boundary=derods.TwistBoundary("ring", total_twist=total))
@@ -128,12 +128,12 @@ def test_writhe_of_known_curves():
 
 def test_end_moment_curls_rod_into_a_circle():
     """End couple 2 pi alpha / L on a clamped rod closes it to within 1 % of L at n = 40
-    (REFERENCE.md case 3; measured 0.84 %, and 3.3 % / 0.21 % at n = 20 / 80: O(1/n^2)).
+    (derods.reference.closing_couple; measured 0.84 %, and 3.3 % / 0.21 % at n = 20 / 80: O(1/n^2)).
     The couple is two opposite forces on the last edge's vertices, perpendicular to it in
     the xz plane, following it as it turns; no gravity, mass damping 10 / s."""
     mat = derods.Material(young=1e6)
     world = rods.cantilever(mat, 40, gravity=0.0, mass_damping=10.0)
-    moment = 2 * math.pi * mat.alpha / 1.0
+    moment = reference.closing_couple(mat.alpha, 1.0)
     tip, pre = world.vertex_body("rod", 40), world.vertex_body("rod", 39)
     while world.time < 300.0:
         for _ in range(50):

@@ -8,6 +8,7 @@ import pytest
 
 import derods
 from derods import shapes
+from derods import step as step_module
 from derods.twist import TwistBoundary
 
 MAT = derods.Material(young=1e8, radius=0.01)
@@ -21,6 +22,20 @@ def bent(rod, rng, amp=0.1):
     return x + rng.normal(scale=0.01, size=x.shape)
 
 
+def count_kernel_calls(monkeypatch) -> list:
+    """A list that grows by one at every call of the compiled step's entry point
+    (derods.step.evaluate), which Rod.step_terms takes on its kernel path only."""
+    calls = []
+    evaluate = step_module.evaluate
+
+    def counted(*args, **kwargs):
+        calls.append(1)
+        return evaluate(*args, **kwargs)
+
+    monkeypatch.setattr(step_module, "evaluate", counted)
+    return calls
+
+
 BOUNDARIES = [
     TwistBoundary(),
     TwistBoundary("free", theta_last=0.3),
@@ -31,16 +46,17 @@ BOUNDARIES = [
 
 @pytest.mark.parametrize("boundary", BOUNDARIES)
 @pytest.mark.parametrize("batch", [(), (4,), (2, 3)])
-def test_kernel_matches_numpy(boundary, batch):
+def test_kernel_matches_numpy(boundary, batch, monkeypatch):
     rng = np.random.default_rng(len(batch))
     rest = shapes.straight(1.0, 15)
     rest = np.broadcast_to(rest, batch + rest.shape).copy()
     rod = derods.Rod(rest, MAT, boundary=boundary, rest_twist=0.05)
-    assert rod.has_kernel
     state = rod.rest_state()
     x = bent(rod, rng)
+    calls = count_kernel_calls(monkeypatch)
     a = rod.step_terms(state, x, use_kernel=True)
     b = rod.step_terms(state, x, use_kernel=False)
+    assert len(calls) == 1  # the compiled step gave a, the numpy path b
     for name in ("energy", "grad_x", "hessian_banded"):
         va, vb = getattr(a, name), getattr(b, name)
         assert va.shape == vb.shape
@@ -68,18 +84,19 @@ def test_kernel_steps_chain_like_advance():
 
 @pytest.mark.parametrize("total_twist", [0.0, 7.0])
 @pytest.mark.parametrize("batch", [(), (3,)])
-def test_kernel_matches_numpy_on_rings(total_twist, batch):
+def test_kernel_matches_numpy_on_rings(total_twist, batch, monkeypatch):
     """Rings: wrap-around stencils, the twist seam, and the band in ring order."""
     rng = np.random.default_rng(11)
     rest = shapes.circle(0.2, 14)
     rest = np.broadcast_to(rest, batch + rest.shape).copy()
     ring = derods.Rod(rest, MAT, closed=True, natural_curvature=False,
                       boundary=TwistBoundary("ring", total_twist=total_twist))
-    assert ring.has_kernel
     state = ring.rest_state()
     x = rest + rng.normal(scale=0.01, size=rest.shape)
+    calls = count_kernel_calls(monkeypatch)
     a = ring.step_terms(state, x, use_kernel=True)
     b = ring.step_terms(state, x, use_kernel=False)
+    assert len(calls) == 1  # the compiled step gave a, the numpy path b
     for name in ("energy", "grad_x"):
         va, vb = getattr(a, name), getattr(b, name)
         np.testing.assert_allclose(va, vb, rtol=RTOL, atol=RTOL * np.abs(vb).max(), err_msg=name)
@@ -107,11 +124,11 @@ MATERIAL_CASES = [
 
 
 @pytest.mark.parametrize("shape,closed,mat,boundary", MATERIAL_CASES)
-def test_kernel_matches_numpy_on_anisotropic_and_curved_rods(shape, closed, mat, boundary):
+def test_kernel_matches_numpy_on_anisotropic_and_curved_rods(shape, closed, mat, boundary, monkeypatch):
     """The compiled Newton twist solve and material-curvature bending against the numpy
     path (bend_material + twist, derods.twist.solve_newton). Both stop Newton when the
     free twist gradient is below 1e-10 of the theta Hessian's scale, so the angles agree
-    to that tolerance, not to round-off: RTOL_NEWTON = 1e-8 on every quantity (measured
+    to that tolerance, not to round-off: rtol = 1e-8 on every quantity (measured
     agreement: better than 1e-11)."""
     rng = np.random.default_rng(3)
     rest = {"straight": shapes.straight(1.0, 14), "helix": shapes.helix(0.1, 0.06, 1.5, 16),
@@ -120,8 +137,10 @@ def test_kernel_matches_numpy_on_anisotropic_and_curved_rods(shape, closed, mat,
     assert not rod.has_closed_form_twist
     state = rod.advance(rod.rest_state(), rod.rest_x)
     x = rest + rng.normal(scale=0.01, size=rest.shape)
+    calls = count_kernel_calls(monkeypatch)
     a = rod.step_terms(state, x, use_kernel=True)
     b = rod.step_terms(state, x, use_kernel=False)
+    assert len(calls) == 1  # the compiled step gave a, the numpy path b
     rtol = 1e-8
     for name in ("energy", "grad_x", "hessian_banded", "grad_theta"):
         va, vb = np.asarray(getattr(a, name)), np.asarray(getattr(b, name))

@@ -7,7 +7,7 @@ import pytest
 
 import derods
 from derods import frames as fr
-from derods import shapes
+from derods import reference, shapes
 from derods.twist import TwistBoundary, solve_isotropic, solve_newton
 
 MAT = derods.Material(young=1e7, radius=0.01, poisson=0.5)
@@ -25,7 +25,7 @@ def test_clamped_twist_energy_and_linear_theta(n, theta_total):
                      boundary=TwistBoundary("clamped", 0.3, 0.3 + theta_total))
     state = rod.advance(rod.rest_state(), rod.rest_x)
     l_eff = length - length / n
-    np.testing.assert_allclose(rod.energy(state), MAT.beta * theta_total**2 / (2 * l_eff), rtol=1e-12)
+    np.testing.assert_allclose(rod.energy(state), reference.twist_energy(MAT.beta, theta_total, l_eff), rtol=1e-12)
     s = (np.arange(n) + 0.5) * length / n
     np.testing.assert_allclose(state.theta, 0.3 + theta_total * (s - s[0]) / l_eff, atol=1e-12)
 
@@ -57,9 +57,10 @@ def test_ring_twist_energy(total):
     assert rod.active_terms == ("stretch", "bend_isotropic", "twist")
     state = rod.advance(rod.rest_state(), rod.rest_x)
     twist = rod.derivatives(state, 0, terms=("twist",)).energy
-    np.testing.assert_allclose(twist, MAT.beta * total**2 / (2 * rod.length), rtol=1e-12)
+    np.testing.assert_allclose(twist, reference.twist_energy(MAT.beta, total, rod.length), rtol=1e-12)
     bend = rod.derivatives(state, 0, terms=("bend_isotropic",)).energy
-    np.testing.assert_allclose(bend, np.pi * MAT.alpha / radius, rtol=5 / 6 * (np.pi / n) ** 2 * 1.01)
+    np.testing.assert_allclose(bend, reference.circle_bending_energy(MAT.alpha, radius),
+                               rtol=5 / 6 * (np.pi / n) ** 2 * 1.01)
 
 
 def arc_state(n=20, theta0=0.1):

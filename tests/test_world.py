@@ -23,7 +23,7 @@ from derods.twist import TwistBoundary
     (1e6, 100, 0.002), (1e8, 100, 0.002), (1e10, 100, 0.002),
 ])
 def test_cantilever_matches_elastica(young, n, tol):
-    """Tip drop vs the elastica at dt = 1e-2 (REFERENCE.md case 2). Measured: n = 20:
+    """Tip drop vs the elastica at dt = 1e-2 (derods.reference.cantilever_elastica). Measured: n = 20:
     -1.09 %, -0.25 %, -0.13 % for E = 1e6, 1e8, 1e10; n = 100: -0.056 %, -0.0095 %,
     -0.005 %. The clamp at the middle of the first edge makes the error O(h^2)."""
     assert abs(rods.tip_drop_error(derods.Material(young=young), n)) < tol

@@ -149,38 +149,3 @@ def matvec_into(ab, w, y):
         for j in range(n - d):
             y[j + d] += ab[d, j] * w[j]
             y[j] += ab[d, j] * w[j + d]
-
-
-# -- scipy's layout, for callers and tests that want it ----------------------------
-
-@nb.njit(cache=True)
-def band_cholesky(ab):
-    """Lower banded Cholesky factor of ab (b + 1, n), in scipy's layout (b + 1, n), as
-    :func:`scipy.linalg.cholesky_banded` with ``lower=True`` returns it."""
-    lt = np.empty((ab.shape[1], ab.shape[0]))
-    cholesky_into(ab, lt)
-    return lt.T.copy()
-
-
-@nb.njit(cache=True)
-def band_solve(lb, rhs):
-    """Solve L L^T x = rhs for a lower banded factor lb (b + 1, n) in scipy's layout;
-    rhs shape (n, m)."""
-    x = rhs.copy()
-    solve_columns(lb.T.copy(), x, 0, x.shape[0], 0)
-    return x
-
-
-@nb.njit(cache=True)
-def banded_inverse_band(lb):
-    """The entries of A^-1 inside the band of A (b + 1, n), from its factor lb in scipy's
-    layout (see :func:`inverse_band`)."""
-    return inverse_band(lb.T.copy(), lb.shape[0])
-
-
-@nb.njit(cache=True)
-def band_matvec(ab, w):
-    """y = A w for symmetric A in lower banded form (b + 1, n); w shape (n,)."""
-    y = np.empty(ab.shape[1])
-    matvec_into(ab, w, y)
-    return y

@@ -126,7 +126,7 @@ def sparse_triplets(rownnz, rowadr, colind, values):
 
 @nb.njit(cache=True)
 def split_rows(row, col, val, local_of_dof, supported, force, n, width):
-    """Sort constraint rows that touch rod dofs (see :func:`derods.contact.rod_rows`).
+    """Sort constraint rows that touch rod dofs (step 1 of :func:`derods._numba.contact.contact_step`).
 
     row, col, val: the nonzeros of MuJoCo's efc_J; local_of_dof (nv,): local rod dof or -1;
     supported (nefc,): rows derods can solve; force (nefc,): MuJoCo's row forces; n: local
@@ -241,7 +241,7 @@ def correct_aref(ncon, con_geom, con_pos, con_frame, con_dim, con_friction, con_
        velocity (v, w) adds w_i = j_i . (relative velocity, geom[1]'s side minus geom[0]'s,
        at the contact point) to the row's velocity. moving (nbody,) bool; body_vel
        (nbody, 6): linear [m/s] and angular [rad/s] velocity, world frame; xpos (nbody, 3).
-    2. Speculative rows (a margin > 0, see :class:`derods.sim.world.ContactParams`):
+    2. Speculative rows (a margin > 0, see :class:`derods.sim.contact_params.ContactParams`):
        a row not yet touching (distance d >= 0) only keeps the end-of-step position
        from crossing the surface, d + h (v_i + h a_i) >= 0, so aref_i = -(d / h + v_i) / h;
        a moving body is already posed for the end of the step when MuJoCo measures d, so

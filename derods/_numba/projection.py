@@ -1,5 +1,5 @@
-"""Compiled mirror of :mod:`derods.sim.projection`: fast projection of open rods onto
-their rest edge lengths (Goldenthal et al. 2007, Algorithm 1), one rod or all of a
+"""Fast projection of open rods onto their rest edge lengths (Goldenthal et al. 2007,
+Algorithm 1; the method: :mod:`derods.sim.projection`), compiled: one rod or all of a
 world's in one call."""
 
 from __future__ import annotations

@@ -1,2 +1,3 @@
-"""What users run: the drop-and-film job (:mod:`derods.apps.drop`) and the command line
-(:mod:`derods.apps.cli`)."""
+"""What users run: the drop-and-film job (:mod:`derods.apps.drop`), the hair video
+(:mod:`derods.apps.hair`), the command line's options and exit codes (:mod:`derods.apps.cli`)
+and what each subcommand does (:mod:`derods.apps.commands`)."""

@@ -11,6 +11,10 @@ Commands:
   demo    build rods from the paper's test cases and print their frames and energies.
   bench   run a benchmark case (cantilever, frequency, drop, michell, circle, twist, stability, extreme,
           oscillation, hair) and print records.
+
+This module reads the options (the picture commands' shared ones come from one function,
+:func:`_picture_options`) and turns errors and signals into exit codes; what each command
+then does is in :mod:`derods.apps.commands`.
 """
 
 from __future__ import annotations
@@ -19,13 +23,7 @@ import argparse
 import signal
 import sys
 
-import numpy as np
-
-#: Control points [m] of the demo's two-segment cubic Bezier curve.
-DEMO_CONTROL_POINTS = np.array([
-    [0.0, 0.0, 0.0], [0.3, 0.4, 0.0], [0.6, 0.5, 0.2], [1.0, 0.3, 0.2],
-    [1.2, -0.3, 0.5], [1.5, 0.0, 0.0], [1.8, 0.4, 0.1],
-])
+from . import commands
 
 
 def _positive_int(text: str) -> int:
@@ -35,220 +33,30 @@ def _positive_int(text: str) -> int:
     return v
 
 
-def demo(args: argparse.Namespace) -> int:
-    """Bezier rods with C0 and C1 joins, a clamped twisted rod and a twisted ring."""
-    import derods
-    from derods import frames, geometry, shapes
-    from derods.twist import TwistBoundary
+def _picture_options(parser: argparse.ArgumentParser, width: int, height: int, out: str, *, fps: float | None = None,
+                     camera: str | None = None) -> None:
+    """Add the options the picture commands share, worded the same for each, as one group of
+    ``parser``: --width and --height [pixels] and --out (a PNG); for a video (``fps``: its
+    default frame rate) --out is an MP4 and --fps, --still (the last frame as a PNG),
+    --quality and --quiet come too; --camera when ``camera`` (the default camera, in words)
+    is given."""
+    from derods.viz.render import QUALITIES
 
-    n = args.n_edges
-    mat = derods.Material(young=args.young, radius=args.radius, density=args.density)
-    print(f"derods {derods.__version__}: material E = {mat.young:.3g} Pa, r = {mat.radius:g} m, "
-          f"alpha = EI = {mat.alpha:.4g} N m^2, beta = GJ = {mat.beta:.4g} N m^2")
-
-    print(f"\n1. Bishop frames on a two-segment cubic Bezier curve, {n} edges")
-    for cont in ("C0", "C1"):
-        p = shapes.bezier_control_points(DEMO_CONTROL_POINTS, cont)
-        x = shapes.bezier(DEMO_CONTROL_POINTS, n, cont)
-        u = frames.bishop_frames(x, False)
-        k = int(np.argmin(np.linalg.norm(x - shapes.bezier_eval(p, 1.0), axis=1)))
-        angles = np.degrees(geometry.turning_angles(x, False))
-        rod = derods.Rod(x, mat)
-        print(f"   {cont}: largest turning angle {angles.max():6.2f} deg "
-              f"(at the join, vertex {k}: {angles[max(k - 1, 0)]:6.2f} deg); "
-              f"Bishop u at the ends {np.round(u[0], 3)} -> {np.round(u[-1], 3)}; "
-              f"terms {rod.active_terms}")
-
-    print("\n2. A straight rod, both ends clamped, one end turned by 2 pi")
-    rod = derods.Rod(shapes.straight(1.0, n), mat, boundary=TwistBoundary("clamped", 0.0, 2 * np.pi))
-    state = rod.advance(rod.rest_state(), rod.rest_x)
-    l_eff = 1.0 - 1.0 / n
-    print(f"   twist energy {rod.energy(state):.6g} J; beta Theta^2 / (2 L') = "
-          f"{mat.beta * (2 * np.pi) ** 2 / (2 * l_eff):.6g} J (L' = {l_eff:g} m between the clamped edges)")
-
-    print("\n3. A naturally straight ring twisted by Theta (Michell's test case)")
-    theta_c = 2 * np.pi * np.sqrt(3) * mat.alpha / mat.beta
-    ring = derods.Rod(shapes.circle(0.25, n), mat, closed=True, natural_curvature=False,
-                      boundary=TwistBoundary("ring", total_twist=0.5 * theta_c))
-    rs = ring.advance(ring.rest_state(), ring.rest_x)
-    bend = ring.derivatives(rs, 0, terms=("bend_isotropic",)).energy
-    tw = ring.derivatives(rs, 0, terms=("twist",)).energy
-    print(f"   critical twist 2 pi sqrt(3) alpha / beta = {theta_c:.4f} rad; at Theta = Theta_c / 2: "
-          f"bending {bend:.6g} J (pi alpha / R = {np.pi * mat.alpha / 0.25:.6g}), twist {tw:.6g} J")
-    return 0
-
-
-def _before_filming(out, still, params) -> None:
-    """Refuse what can be refused (the output paths; seconds, fps and dt that do not make
-    whole frames) before the compiled kernels are prepared, then prepare them."""
-    from derods.sim import warmup
-    from derods.viz import render
-
-    render.check_outputs(out, still)
-    render.frame_plan(params.seconds, params.fps, params.dt)
-    warmup.prepare()
-
-
-def drop(args: argparse.Namespace) -> int:
-    """``derods drop``: see :mod:`derods.apps.drop`."""
-    if not args.quiet:
-        print(f"derods drop: {args.rods} {args.shape} rods x {args.n_edges} edges onto {args.scene}, "
-              f"{args.seconds:g} s at dt {args.dt:g} s, filmed at {args.fps:g} frames/s -> {args.out}",
-              file=sys.stderr, flush=True)
-    import derods
-    from derods.apps import drop as drop_mod
-    from derods.viz import figures
-
-    mat = derods.Material(young=args.young, radius=args.radius, density=args.density)
-    control = None if args.control is None else figures.parse_points(args.control)
-    params = drop_mod.DropParams(
-        scene=args.scene, rods=args.rods, shape=args.shape, n_edges=args.n_edges, length=args.length,
-        seconds=args.seconds, dt=args.dt, fps=args.fps, width=args.width, height=args.height,
-        camera=args.camera, material=mat, seed=args.seed, overlay=args.overlay, control=control, mode=args.mode)
-    _before_filming(args.out, args.still, params)
-    summary = drop_mod.drop(params, args.out, progress=not args.quiet, still=args.still, quality=args.quality,
-                            notes=lambda text: print(f"derods drop: note: {text}", file=sys.stderr))
-    print(f"wrote {summary['out']}: {summary['frames']} frames, {summary['sim_s']:.4g} s simulated "
-          f"({summary['steps']} steps, {summary['mode']}, {summary['quality']} rendering), "
-          f"rods {', '.join(summary['rods'])}" + (f"; still {args.still}" if args.still else ""))
-    return 0
-
-
-def hair(args: argparse.Namespace) -> int:
-    """``derods hair``: see :mod:`derods.apps.hair`."""
-    if not args.quiet:
-        print(f"derods hair: {args.strands} strands x {args.vertices} vertices on a head ({args.motion}), "
-              f"{args.seconds:g} s at dt {args.dt:g} s, filmed at {args.fps:g} frames/s -> {args.out}",
-              file=sys.stderr, flush=True)
-    from derods import hair as hair_mod
-    from derods.apps import hair as app
-
-    params = app.HairParams(hair=hair_mod.Hair(strands=args.strands, vertices=args.vertices, seed=args.seed),
-                            motion=args.motion, seconds=args.seconds, dt=args.dt, fps=args.fps, width=args.width,
-                            height=args.height, strand_contact=args.strand_contact)
-    _before_filming(args.out, args.still, params)
-    s = app.run(params, args.out, progress=not args.quiet, still=args.still, quality=args.quality)
-    print(f"wrote {s['out']}: {s['frames']} frames, {s['sim_s']:.4g} s simulated ({s['steps']} steps), "
-          f"{s['strands']} strands x {s['vertices']} vertices built in {s['build_s']:.1f} s; deepest strand in "
-          f"the skull {s['max_penetration'] * 1e3:.2f} mm, largest strain {s['max_strain']:.1e}"
-          + (f"; still {args.still}" if args.still else ""))
-    return 0
-
-
-def edit(args: argparse.Namespace) -> int:
-    """``derods edit``: the rod editor in a browser (derods.editor.app)."""
-    try:
-        import viser  # noqa: F401
-    except ImportError:
-        raise ValueError("derods edit needs the browser editor's extra: pip install 'derods[ui]' "
-                         "(make demo and make test install it)") from None
-    from derods import scenes
-    from derods.editor import app
-
-    scenes.path(args.scene)  # an unknown scene is an error before a server starts
-    if not 0 <= args.port <= 65535:
-        raise ValueError(f"port must be in 0..65535, got {args.port}")
-    app.serve(args.scene, host=args.host, port=args.port)
-    return 0
-
-
-def view(args: argparse.Namespace) -> int:
-    """``derods view``: the drop scene in MuJoCo's viewer; drag a rod with the mouse
-    (double-click it, then Ctrl + right-drag) and the pull enters the implicit step."""
-    import os
-    import time
-
-    if sys.platform.startswith("linux") and not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
-        raise ValueError("derods view needs a display and none is set (DISPLAY); run it on a desktop, "
-                         "or write a video with 'derods drop'")
-    import mujoco.viewer
-
-    from derods.apps import drop as drop_mod
-
-    params = drop_mod.DropParams(scene=args.scene, rods=args.rods, shape=args.shape, n_edges=args.n_edges)
-    world = drop_mod.build_world(params)
-    h = world.model.opt.timestep
-    with mujoco.viewer.launch_passive(world.model, world.data) as viewer:
-        while viewer.is_running():
-            start = time.perf_counter()
-            world.step(max(1, int(round(1 / (60 * h)))))
-            viewer.sync()
-            time.sleep(max(0.0, 1 / 60 - (time.perf_counter() - start)))
-    return 0
-
-
-def frames_cmd(args: argparse.Namespace) -> int:
-    """``derods frames``: see :func:`derods.viz.figures.bezier_frames`."""
-    from derods.viz import figures
-
-    points = figures.BEZIER_DEMO if args.control is None else figures.parse_points(args.control)
-    info = figures.bezier_frames(args.out, points, args.continuity, args.n_edges, args.width, args.height)
-    print(f"wrote {info['out']}: {args.continuity} joins, {args.n_edges} edges, "
-          f"largest turning angle {info['max_turn_deg']:.1f} deg")
-    return 0
-
-
-def michell_cmd(args: argparse.Namespace) -> int:
-    """``derods michell``: see :func:`derods.viz.figures.michell_pair`."""
-    from derods.viz import figures
-
-    info = figures.michell_pair(args.out, args.n_edges, args.below, args.above, args.seconds,
-                                args.width, args.height)
-    bend = ", ".join(f"{b * 1000:.2f} mm" for b in info["out_of_plane"])
-    print(f"wrote {info['out']}: Theta_c = {info['theta_c']:.3f} rad; out of plane after "
-          f"{args.seconds:g} s: {bend}")
-    return 0
-
-
-def compare_cmd(args: argparse.Namespace) -> int:
-    """``derods compare``: see :mod:`derods.bench.sweep` and :mod:`derods.bench.report`."""
-    import concurrent.futures
-    import pathlib
-
-    from derods.bench import report, sweep
-
-    results = pathlib.Path(args.results)
-    jobs = []
-    if args.full:
-        jobs = sweep.full_plan(tuple(args.backends.split(",")))
-    elif not args.report_only:
-        jobs = sweep.plan(args.cases.split(","), args.backends.split(","),
-                            [int(v) for v in args.n_edges.split(",")], [float(v) for v in args.dt.split(",")],
-                            tuple(args.modes.split(",")), young=args.young)
-    if jobs and args.workers > 1:
-        with concurrent.futures.ProcessPoolExecutor(args.workers) as ex:
-            sweep.sweep(jobs, results, ex)
-    elif jobs:
-        sweep.sweep(jobs, results)
-    path = report.report(results, args.report_dir, command="python -m derods " + " ".join(sys.argv[1:]))
-    print(f"wrote {path}")
-    return 0
-
-
-def bench(args: argparse.Namespace) -> int:
-    """``derods bench CASE``: see :mod:`derods.bench.cases`."""
-    from derods import bench as bench_mod
-
-    if args.case == "hair":
-        from derods.bench import hair as hair_bench
-
-        given = {k: getattr(args, k) for k in ("strands", "vertices", "dt", "motion", "seconds", "backend")
-                 if getattr(args, k) is not None}
-        given["strand_contact"] = args.strand_contact
-        return hair_bench.main(hair_bench.HairCase(**given), args.json)
-    for name in ("strands", "vertices", "motion", "seconds"):
-        if getattr(args, name) is not None:
-            raise ValueError(f"--{name} is an option of the hair case only")
-    if args.strand_contact:
-        raise ValueError("--strand-contact is an option of the hair case only")
-    return bench_mod.main(args.case, bench_mod.params_from_args(args), args.json)
-
-
-def _picture_args(parser: argparse.ArgumentParser, width: int, height: int, out: str) -> None:
-    """The --width, --height and --out options shared by the picture commands."""
-    parser.add_argument("--width", type=int, default=width, help=f"image width [pixels] (default {width})")
-    parser.add_argument("--height", type=int, default=height, help=f"image height [pixels] (default {height})")
-    parser.add_argument("--out", default=out, help=f"output PNG (default {out})")
+    kind = "image" if fps is None else "video"
+    group = parser.add_argument_group(f"{kind} options")
+    if fps is not None:
+        group.add_argument("--fps", type=float, default=fps, help=f"video frames per second (default {fps:g})")
+    group.add_argument("--width", type=int, default=width, help=f"{kind} width [pixels] (default {width})")
+    group.add_argument("--height", type=int, default=height, help=f"{kind} height [pixels] (default {height})")
+    if camera is not None:
+        group.add_argument("--camera", default=None, help=f"camera name (default: {camera})")
+    group.add_argument("--out", default=out, help=f"output {'PNG' if fps is None else 'MP4 path'} (default {out})")
+    if fps is not None:
+        group.add_argument("--still", default=None, help="also write the last frame to this PNG")
+        group.add_argument("--quality", choices=("auto",) + tuple(QUALITIES), default="auto",
+                           help="rendering: fast (shadow map 1024, no MSAA or reflections: ~5x cheaper on software "
+                                "GL), full (the scene's own settings), auto (fast on software GL; default)")
+        group.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -268,11 +76,6 @@ def main(argv: list[str] | None = None) -> int:
     d.add_argument("--length", type=float, default=0.8, help="rod length [m] (default 0.8)")
     d.add_argument("--seconds", type=float, default=4.0, help="simulated time [s] (default 4)")
     d.add_argument("--dt", type=float, default=2e-3, help="time step [s] (default 2e-3)")
-    d.add_argument("--fps", type=float, default=30.0, help="video frames per second (default 30)")
-    d.add_argument("--width", type=int, default=960, help="video width [pixels] (default 960)")
-    d.add_argument("--height", type=int, default=540, help="video height [pixels] (default 540)")
-    d.add_argument("--camera", default=None, help="camera name (default: the scene's 'main')")
-    d.add_argument("--out", default="drop.mp4", help="output MP4 path (default drop.mp4)")
     d.add_argument("--young", type=float, default=2e6, help="Young's modulus E [Pa] (default 2e6)")
     d.add_argument("--radius", type=float, default=0.008, help="rod radius [m] (default 0.008)")
     d.add_argument("--density", type=float, default=1100.0, help="density [kg/m^3] (default 1100)")
@@ -282,12 +85,8 @@ def main(argv: list[str] | None = None) -> int:
                         "keeps it), explicit, projection, auto (default: implicit unless dt is tiny)")
     d.add_argument("--overlay", choices=["none", "frames", "bend", "twist"], default="none",
                    help="draw material frames, or colour rods by bending or twisting strain (default none)")
-    d.add_argument("--still", default=None, help="also write the last frame to this PNG")
-    d.add_argument("--quality", choices=["auto", "fast", "full"], default="auto",
-                   help="rendering: fast (shadow map 1024, no MSAA or reflections: ~5x cheaper on software GL), "
-                        "full (the scene's own settings), auto (fast on software GL; default)")
-    d.add_argument("--quiet", action="store_true", help="no progress bar")
-    d.set_defaults(func=drop)
+    _picture_options(d, 960, 540, "drop.mp4", fps=30.0, camera="the scene's 'main'")
+    d.set_defaults(func=commands.drop)
 
     hp = sub.add_parser("hair", help="curled strands on a moving head, filmed to an MP4 (headless)")
     hp.add_argument("--strands", type=int, default=1000, help="number of strands (default 1000)")
@@ -296,25 +95,18 @@ def main(argv: list[str] | None = None) -> int:
                     help="head motion (default shake)")
     hp.add_argument("--seconds", type=float, default=3.0, help="simulated time [s] (default 3)")
     hp.add_argument("--dt", type=float, default=1e-2, help="time step [s] (default 1e-2)")
-    hp.add_argument("--fps", type=float, default=25.0, help="video frames per second (default 25)")
-    hp.add_argument("--width", type=int, default=960, help="video width [pixels] (default 960)")
-    hp.add_argument("--height", type=int, default=540, help="video height [pixels] (default 540)")
-    hp.add_argument("--out", default="hair.mp4", help="output MP4 path (default hair.mp4)")
-    hp.add_argument("--still", default=None, help="also write the last frame to this PNG")
     hp.add_argument("--strand-contact", action="store_true", help="strands touch one another (default: off)")
     hp.add_argument("--seed", type=int, default=0, help="seed of the roots' jitter and the curls (default 0)")
-    hp.add_argument("--quality", choices=["auto", "fast", "full"], default="auto",
-                    help="rendering quality, as for drop (default auto)")
-    hp.add_argument("--quiet", action="store_true", help="no progress bar")
-    hp.set_defaults(func=hair)
+    _picture_options(hp, 960, 540, "hair.mp4", fps=25.0)
+    hp.set_defaults(func=commands.hair)
 
     f = sub.add_parser("frames", help="draw a Bezier rod with its Bishop frames to a PNG")
     f.add_argument("--control", default=None,
                    help="control points 'x,y,z; x,y,z; ...' [m], 3k+1 of them (default: a two-segment demo)")
     f.add_argument("--continuity", choices=["C0", "C1"], default="C1", help="join continuity (default C1)")
     f.add_argument("--n-edges", type=_positive_int, default=40, help="edges (default 40)")
-    _picture_args(f, 960, 640, "frames.png")
-    f.set_defaults(func=frames_cmd)
+    _picture_options(f, 960, 640, "frames.png")
+    f.set_defaults(func=commands.frames_cmd)
 
     c = sub.add_parser("compare", help="sweep cases x backends x n x dt; append records; write a report")
     c.add_argument("--cases", default="cantilever,frequency,circle,drop", help="comma-separated cases")
@@ -331,21 +123,21 @@ def main(argv: list[str] | None = None) -> int:
     c.add_argument("--report-only", action="store_true", help="only write the report from the results file")
     c.add_argument("--full", action="store_true",
                    help="the sample report's sweep: accuracy, stability map, extreme cases")
-    c.set_defaults(func=compare_cmd)
+    c.set_defaults(func=commands.compare_cmd)
 
     e = sub.add_parser("edit", help="shape a rod on Bezier curves and simulate it, in a browser (local web app)")
     e.add_argument("--scene", default="floor", help="scene name or MJCF path the rod falls into (default floor)")
     e.add_argument("--host", default="127.0.0.1",
                    help="interface to listen on (default 127.0.0.1: this machine only; 0.0.0.0 exposes it)")
     e.add_argument("--port", type=int, default=8080, help="port (default 8080; 0: any free one)")
-    e.set_defaults(func=edit)
+    e.set_defaults(func=commands.edit)
 
     v = sub.add_parser("view", help="open a scene with rods in MuJoCo's interactive viewer")
     v.add_argument("--scene", default="box", help="scene name or MJCF path (default box)")
     v.add_argument("--rods", type=int, default=3, help="number of rods (default 3)")
     v.add_argument("--shape", choices=["straight", "helix", "bezier"], default="straight")
     v.add_argument("--n-edges", type=_positive_int, default=40, help="edges per rod (default 40)")
-    v.set_defaults(func=view)
+    v.set_defaults(func=commands.view)
     from derods.apps import mjcf_run
 
     mjcf_run.register(sub, v)  # `derods run MODEL.xml`, and `derods view MODEL.xml`
@@ -355,15 +147,15 @@ def main(argv: list[str] | None = None) -> int:
     mi.add_argument("--below", type=float, default=0.9, help="left ring's twist / Theta_c (default 0.9)")
     mi.add_argument("--above", type=float, default=1.2, help="right ring's twist / Theta_c (default 1.2)")
     mi.add_argument("--seconds", type=float, default=4.0, help="simulated time [s] (default 4)")
-    _picture_args(mi, 960, 480, "michell.png")
-    mi.set_defaults(func=michell_cmd)
+    _picture_options(mi, 960, 480, "michell.png")
+    mi.set_defaults(func=commands.michell_cmd)
 
     p = sub.add_parser("demo", help="build rods from the paper's test cases and print frames and energies")
     p.add_argument("--n-edges", type=_positive_int, default=40, help="edges per rod (default 40)")
     p.add_argument("--young", type=float, default=1e7, help="Young's modulus E [Pa] (default 1e7)")
     p.add_argument("--radius", type=float, default=0.01, help="rod radius [m] (default 0.01)")
     p.add_argument("--density", type=float, default=1000.0, help="density [kg/m^3] (default 1000)")
-    p.set_defaults(func=demo)
+    p.set_defaults(func=commands.demo)
 
     b = sub.add_parser("bench", help="run a benchmark case and print one record per run")
     b.add_argument("case", choices=["cantilever", "frequency", "drop", "michell", "circle", "twist", "stability",
@@ -390,7 +182,7 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--seconds", type=float, default=None, help="hair: simulated time [s] (default 1.5)")
     b.add_argument("--strand-contact", action="store_true", help="hair: strands touch one another (default off)")
     b.add_argument("--json", action="store_true", help="print one JSON object per line")
-    b.set_defaults(func=bench)
+    b.set_defaults(func=commands.bench)
     args = parser.parse_args(argv)
     from derods.sim.divergence import DivergenceError
 

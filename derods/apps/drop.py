@@ -16,8 +16,9 @@ import mujoco
 import numpy as np
 
 from .. import scenes, shapes
-from ..viz import render
-from ..rod import Material, Rod
+from ..viz import filming, output
+from ..material import Material
+from ..rod import Rod
 from ..twist import TwistBoundary
 from ..sim import scene_checks
 from ..sim.divergence import DivergenceError
@@ -278,18 +279,18 @@ def drop(p: DropParams, out, progress: bool = True, still=None, quality: str = "
     to a scene for its video, and what looks wrong (a rod starting inside an obstacle).
     The files appear only once complete.
     """
-    out, still = render.check_outputs(out, still)
-    render.frame_plan(p.seconds, p.fps, p.dt)  # refuse a mismatched time, fps or dt before any work
+    out, still = output.check_outputs(out, still)
+    filming.frame_plan(p.seconds, p.fps, p.dt)  # refuse a mismatched time, fps or dt before any work
     world = build_world(p, notes)
     check_step(world)
     cam_name = p.camera
     if cam_name is None and mujoco.mj_name2id(world.model, mujoco.mjtObj.mjOBJ_CAMERA, "main") >= 0:
         cam_name = "main"
     paint = overlay_painter(world, p.overlay)
-    result = render.film(world, out, p.seconds, p.fps, p.width, p.height, cam_name, paint=paint, progress=progress,
-                         label=f"drop {p.scene}", quality=quality, after_frame=lambda w: contacts_held(w, False),
-                         before_close=lambda w: contacts_held(w, True))
+    result = filming.film(world, out, p.seconds, p.fps, p.width, p.height, cam_name, paint=paint, progress=progress,
+                          label=f"drop {p.scene}", quality=quality, after_frame=lambda w: contacts_held(w, False),
+                          before_close=lambda w: contacts_held(w, True))
     if still is not None:
-        render.write_image(still, result["last"])
+        output.write_image(still, result["last"])
     return {"out": str(out), "frames": result["frames"], "sim_s": world.time, "steps": world.n_steps,
             "rods": world.rod_names, "mode": world.mode, "quality": result["quality"]}

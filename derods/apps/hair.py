@@ -15,7 +15,7 @@ import mujoco
 
 from .. import hair as hair_mod
 from ..sim.divergence import DivergenceError
-from ..viz import render
+from ..viz import filming, output
 
 
 @dataclass(frozen=True)
@@ -62,8 +62,8 @@ def run(p: HairParams, out, progress: bool = True, still=None, quality: str = "a
     max_penetration [m], max_strain."""
     import time
 
-    out, still = render.check_outputs(out, still)
-    render.frame_plan(p.seconds, p.fps, p.dt)
+    out, still = output.check_outputs(out, still)
+    filming.frame_plan(p.seconds, p.fps, p.dt)
     t0 = time.perf_counter()
     world = hair_mod.build(p.hair, dt=p.dt, strand_contact=p.strand_contact)
     world.compile()
@@ -76,11 +76,11 @@ def run(p: HairParams, out, progress: bool = True, still=None, quality: str = "a
         worst["penetration"] = max(worst["penetration"], check_hair(w, p.hair))
         worst["strain"] = max(worst["strain"], hair_mod.max_strain(w))
 
-    result = render.film(world, out, p.seconds, p.fps, p.width, p.height, p.camera,
-                         before_step=hair_mod.drive(world, hair_mod.Motion(p.motion)), progress=progress,
-                         label=f"hair {p.motion}", quality=quality, after_frame=after_frame, lines=True)
+    result = filming.film(world, out, p.seconds, p.fps, p.width, p.height, p.camera,
+                          before_step=hair_mod.drive(world, hair_mod.Motion(p.motion)), progress=progress,
+                          label=f"hair {p.motion}", quality=quality, after_frame=after_frame, lines=True)
     if still is not None:
-        render.write_image(still, result["last"])
+        output.write_image(still, result["last"])
     return {"out": str(out), "frames": result["frames"], "sim_s": world.time, "steps": world.n_steps,
             "strands": p.hair.strands, "vertices": p.hair.vertices, "build_s": build_s,
             "max_penetration": worst["penetration"], "max_strain": worst["strain"]}

@@ -145,17 +145,17 @@ def _start(world, args) -> None:
 def run(args: argparse.Namespace) -> int:
     """``derods run``: film the model headlessly."""
     from derods.sim import warmup
-    from derods.viz import render
+    from derods.viz import filming, output
 
     out = args.out or pathlib.Path(args.model).with_suffix(".mp4").name
-    render.check_outputs(out, None)
+    output.check_outputs(out, None)
     notes = (lambda text: print(f"derods run: note: {text}", file=sys.stderr)) if not args.quiet else None
     world = build(args.model, args.dt, args.rods_from, args.width, args.height, args.camera, notes)
-    render.frame_plan(args.seconds, args.fps, world.model.opt.timestep)
+    filming.frame_plan(args.seconds, args.fps, world.model.opt.timestep)
     _start(world, args)
     warmup.prepare()
     camera = args.camera or "main"
-    result = render.film(world, out, args.seconds, args.fps, args.width, args.height, camera,
+    result = filming.film(world, out, args.seconds, args.fps, args.width, args.height, camera,
                          progress=not args.quiet, label="run", quality=args.quality)
     print(f"wrote {out}: {result['frames']} frames, {world.time:.4g} s simulated ({world.n_steps} steps, "
           f"{world.mode}), rods {', '.join(world.rod_names)}")

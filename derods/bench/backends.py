@@ -2,10 +2,10 @@
 
 Every benchmark case (:mod:`derods.bench.cases`) drives a rod through
 :class:`RodSimulator` only: derods' :class:`~derods.sim.world.World` implements
-it as it is, MuJoCo's native rods through :mod:`derods.bench.native`. What
-differs between backends, how each builds a clamped, free or twisted rod and
-how it applies an end couple, lives in one :class:`Backend` record per
-backend, not in the cases.
+it as it is, MuJoCo's native rods through :mod:`derods.bench.native` (flexcomp)
+and :mod:`derods.bench.cable` (MuJoCo 3.x's cable). What differs between
+backends, how each builds a clamped, free or twisted rod and how it applies an
+end couple, lives in one :class:`Backend` record per backend, not in the cases.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from .. import scenes, shapes
 from ..rod import Rod
 from ..sim.world import ContactParams, World
 from ..twist import TwistBoundary
-from . import elastica, native
+from . import cable, elastica, native
 
 
 class RodSimulator(Protocol):
@@ -153,7 +153,7 @@ def _flex_requirement() -> str | None:
 def _cable_cantilever(p, gravity: float, damping: float):
     # The cable's own damping (joint damping 0.01 E I / h, implicit) replaces mass damping.
     x = shapes.straight(p.length, p.n_edges, start=(0.0, 0.0, 1.0))
-    return native.cable_rod(p, gravity=(0.0, 0.0, -gravity)), x
+    return cable.cable_rod(p, gravity=(0.0, 0.0, -gravity)), x
 
 
 def _cable_clamped(p, x: np.ndarray, gravity: float, damping: float):
@@ -161,7 +161,7 @@ def _cable_clamped(p, x: np.ndarray, gravity: float, damping: float):
 
 
 def _cable_free(p, x: np.ndarray, scene: str | None, damping: float = 0.0):
-    return native.cable_rod(p, clamped=False, start=x[0], direction=x[-1] - x[0], scene=scene)
+    return cable.cable_rod(p, clamped=False, start=x[0], direction=x[-1] - x[0], scene=scene)
 
 
 def _cable_couple(sim, moment: float) -> None:
@@ -171,7 +171,7 @@ def _cable_couple(sim, moment: float) -> None:
 
 
 def _cable_requirement() -> str | None:
-    if native.has_cable():
+    if cable.has_cable():
         return None
     return (f"backend 'cable' needs MuJoCo 3.x (the cable plugin was removed in 4.0; this is {mujoco.__version__}); "
             "make venv317, then run with .venv317/bin/python")
@@ -201,7 +201,7 @@ BACKENDS = {
     "flex": Backend("flex", lambda p: "discrete", _flex_requirement, _flex_cantilever, _flex_clamped, _flex_free,
                     lambda p, theta, self_contact=False: native.flex_ring(p, theta), _force_pair),
     "cable": Backend("cable", lambda p: "implicitfast", _cable_requirement, _cable_cantilever, _cable_clamped,
-                     _cable_free, lambda p, theta, self_contact=False: native.cable_ring(p, theta), _cable_couple),
+                     _cable_free, lambda p, theta, self_contact=False: cable.cable_ring(p, theta), _cable_couple),
     "elastica": Backend("elastica", lambda p: "position_verlet", elastica.available, _elastica_cantilever,
                         _elastica_unsupported, _elastica_free, None, _elastica_unsupported),
 }

@@ -1,11 +1,10 @@
 """Benchmark cases, each defined once: ``python -m derods bench CASE``.
 
-Every case builds its scene from a :class:`CaseParams`, runs it, and returns
-records (dicts, one JSON object per line on the command line) with the same
-fields: what was run (case, backend, mujoco_version, n_edges, dt, mode, young,
-shear, length, radius, density, gravity), what came out (measured, reference,
-rel_error, stable), what it cost (steps, sim_s, wall_s, us_per_step) and what
-the world evaluated (active_terms). Cases may add fields of their own.
+Every case builds its scene from a :class:`derods.bench.params.CaseParams`, runs it, and
+returns records (dicts, one JSON object per line on the command line) with the fields of
+:func:`derods.bench.measures.record`. Beside the cases here: ``extreme``
+(:mod:`derods.bench.extreme`) and ``coupling`` (:mod:`derods.bench.coupling`); the command
+that runs one by name: :mod:`derods.bench.command`.
 
 Cases:
 
@@ -36,39 +35,22 @@ Cases:
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
-import platform
-import sys
 import time
-from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
 from .. import reference, shapes
-from ..rod import Material, Rod
+from ..rod import Rod
 from ..sim.divergence import DivergenceError
-from ..sim.world import MODES as _WORLD_MODES
 from ..sim.world import World
 from ..twist import TwistBoundary
 from . import native
-from .backends import BACKENDS as _BACKENDS
 from .backends import RodSimulator
-
-#: The derods modes a case can run in (a World's, without "auto").
-DER_MODES = tuple(m for m in _WORLD_MODES if m != "auto")
-CASES = ("cantilever", "frequency", "drop", "michell", "circle", "twist", "stability", "extreme", "oscillation",
-         "coupling")
-BACKENDS = tuple(_BACKENDS)
-#: Cases each backend can run.
-BACKEND_CASES = {"der": ("cantilever", "frequency", "drop", "michell", "circle", "twist", "stability",
-                         "extreme", "oscillation", "coupling"),
-                 "flex": ("cantilever", "frequency", "drop", "circle", "stability", "extreme", "oscillation")
-                 + (("michell",) if native.has_flex_twist() else ()),
-                 "cable": ("cantilever", "frequency", "michell", "circle", "drop", "stability", "extreme",
-                           "oscillation"),
-                 "elastica": ("cantilever", "frequency", "oscillation")}
+from .measures import (clamp_reaction, crossing_frequency, max_strain, out_of_plane, record, step_recording,
+                       swing_amplitudes, tip_height)
+from .params import CaseParams
 
 #: A dropped rod is at rest when no vertex moves faster than this [m/s].
 REST_SPEED = 1e-3
@@ -79,88 +61,6 @@ BUCKLED = 0.05
 SETTLE_SPEED = 1e-5
 
 
-@dataclass(frozen=True)
-class CaseParams:
-    """The rod and the time stepping shared by every case (SI units).
-
-    n_edges: edges of the rod. dt: time step [s]. young: E [Pa]. shear: G [Pa]
-    (None: from poisson). length [m], radius [m], density [kg/m^3], gravity
-    [m/s^2] (magnitude, pointing down). mode: one of DER_MODES.
-    backend: "der", MuJoCo's native "flex" or "cable", or "elastica" (PyElastica, at the dt
-    given: :func:`derods.bench.elastica.search_dt` finds its largest stable one)
-    (:mod:`derods.bench.backends`).
-    """
-
-    n_edges: int = 20
-    dt: float = 1e-2
-    young: float = 1e8
-    shear: float | None = None
-    poisson: float = 0.5
-    length: float = 1.0
-    radius: float = 0.01
-    density: float = 1000.0
-    gravity: float = 9.81
-    mode: str = "implicit"
-    backend: str = "der"
-
-    def __post_init__(self):
-        if self.backend not in BACKENDS:
-            raise ValueError(f"backend must be one of {BACKENDS}, got {self.backend!r}")
-        missing = _BACKENDS[self.backend].requirement()
-        if missing:
-            raise ValueError(missing)
-        if self.mode not in DER_MODES:
-            raise ValueError(f"mode must be one of {DER_MODES}, got {self.mode!r}")
-        if int(self.n_edges) != self.n_edges or self.n_edges < 2:
-            raise ValueError(f"n_edges must be an integer >= 2, got {self.n_edges!r}")
-        for name, unit in (("dt", "s"), ("length", "m")):
-            if not (np.isfinite(getattr(self, name)) and getattr(self, name) > 0):
-                raise ValueError(f"{name} must be finite and > 0 [{unit}], got {getattr(self, name)!r}")
-        if self.gravity < 0:
-            raise ValueError(f"gravity is a magnitude and must be >= 0 [m/s^2], got {self.gravity!r}")
-
-    @property
-    def material(self) -> Material:
-        return Material(young=self.young, density=self.density, radius=self.radius,
-                        shear=self.shear, poisson=self.poisson)
-
-    @property
-    def build(self):
-        """How this run's backend builds its rods (:class:`derods.bench.backends.Backend`)."""
-        return _BACKENDS[self.backend]
-
-
-def _record(case: str, p: CaseParams, world: RodSimulator | None, measured, ref, stable: bool,
-            wall: float, **extra) -> dict:
-    steps = world.n_steps if world is not None else 0
-    mat = p.material
-    rel = (measured - ref) / ref if (measured is not None and ref) else None
-    return {
-        "case": case,
-        "backend": p.backend,
-        "mujoco_version": mujoco.__version__,
-        "n_edges": p.n_edges,
-        "dt": p.dt,
-        "mode": p.build.mode(p),
-        "young": p.young,
-        "shear": mat.shear_modulus,
-        "length": p.length,
-        "radius": p.radius,
-        "density": p.density,
-        "gravity": p.gravity,
-        "measured": measured,
-        "reference": ref,
-        "rel_error": rel,
-        "stable": stable,
-        "steps": steps,
-        "sim_s": steps * p.dt,
-        "wall_s": wall,
-        "us_per_step": 1e6 * wall / steps if steps else None,
-        "active_terms": sorted({t for terms in world.active_terms.values() for t in terms}) if world else [],
-        **extra,
-    }
-
-
 def _first_mode_rate(p: CaseParams) -> float:
     """Angular frequency [rad/s] of the slowest mode: bending, or the rod as a pendulum."""
     mat = p.material
@@ -169,7 +69,7 @@ def _first_mode_rate(p: CaseParams) -> float:
 
 
 def cantilever(p: CaseParams, max_time: float = 30.0) -> list[dict]:
-    """Static tip drop of a horizontal cantilever under its weight (REFERENCE.md case 2)."""
+    """Static tip drop of a horizontal cantilever under its weight, against the elastica."""
     mat = p.material
     ref = reference.cantilever_elastica(mat.line_density * p.gravity, p.length, mat.alpha)["tip_drop"]
     # Mass-proportional damping at 0.7 of critical on the slowest mode settles it fastest.
@@ -187,21 +87,12 @@ def cantilever(p: CaseParams, max_time: float = 30.0) -> list[dict]:
         stable, note = False, str(err)
     wall = time.perf_counter() - t0
     settled = stable and np.max(np.abs(world.velocities())) < SETTLE_SPEED * p.length
-    return [_record("cantilever", p, world, measured, ref, stable, wall, settled=bool(settled),
-                    note=note, **_clamp_reaction(world, stable))]
-
-
-def _clamp_reaction(world, stable: bool) -> dict:
-    """What the rod puts on its clamp (derods' World.reaction: force [N] and moment [N m]
-    about the clamp point, world frame), for the record; nothing for a backend without it."""
-    if not stable or not hasattr(world, "reaction"):
-        return {}
-    force, moment = world.reaction(0, "start")
-    return {"clamp_force": force.tolist(), "clamp_moment": moment.tolist()}
+    return [record("cantilever", p, world, measured, ref, stable, wall, settled=bool(settled),
+                   note=note, **clamp_reaction(world, stable))]
 
 
 def frequency(p: CaseParams, periods: int = 4) -> list[dict]:
-    """First bending frequency of a clamped-free rod (REFERENCE.md case 4), no gravity."""
+    """First bending frequency of a clamped-free rod, no gravity, against Euler-Bernoulli."""
     mat = p.material
     ref = reference.cantilever_frequency(mat.alpha, mat.line_density, p.length)
     world, rest_x = p.build.cantilever(p, 0.0, 0.0)
@@ -215,69 +106,7 @@ def frequency(p: CaseParams, periods: int = 4) -> list[dict]:
     world.set_positions(0, x0)
     z, stable, note, wall = step_recording(world, int(math.ceil(periods / ref / p.dt)), tip_height)
     measured = crossing_frequency(z, p.dt) if stable else None
-    return [_record("frequency", p, world, measured, ref, stable, wall, note=note)]
-
-
-def tip_height(x: np.ndarray) -> float:
-    """The last vertex's height above z = 1 m [m] of positions x (n_vertices, 3)."""
-    return float(x[-1, 2] - 1.0)
-
-
-def step_recording(world, n_steps: int, height) -> tuple[np.ndarray, bool, str, float]:
-    """Step ``world`` n_steps times recording height(positions of its first rod) [m];
-    returns (those heights (n_steps,), stable, the divergence's message or "", wall time
-    [s]). After a divergence the heights past it are undefined."""
-    z = np.empty(n_steps)
-    t0 = time.perf_counter()
-    stable, note = True, ""
-    try:
-        for k in range(n_steps):
-            world.step()
-            z[k] = height(world.positions())
-    except DivergenceError as err:
-        stable, note = False, str(err)
-    return z, stable, note, time.perf_counter() - t0
-
-
-def crossing_frequency(z: np.ndarray, dt: float) -> float | None:
-    """The frequency [Hz] of a swing z (n,) sampled every dt [s] after each of n steps,
-    from its upward zero crossings (linearly interpolated); None with fewer than two."""
-    t = dt * np.arange(1, len(z) + 1)
-    up = np.flatnonzero((z[:-1] < 0) & (z[1:] >= 0))
-    crossings = t[up] - z[up] * dt / (z[up + 1] - z[up])
-    if len(crossings) < 2:
-        return None
-    return float(1.0 / np.mean(np.diff(crossings)))
-
-
-def swing_amplitudes(z: np.ndarray, hysteresis: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
-    """The indices of the turning points of a sampled swing z (n,) and the peak-to-peak
-    amplitude between each one and the next, shape (turns - 1,).
-
-    A turning point counts once the swing has come back from it by ``hysteresis`` times
-    the last swing (at first, z's whole range): ripples of faster modes riding on the
-    swing (an explicit integrator keeps them all) are not turns, a decaying swing's
-    late turns are. An extreme the record ends on, unconfirmed, is not counted."""
-    z = np.asarray(z, dtype=float)
-    if len(z) < 3:
-        return np.zeros(0, dtype=int), np.zeros(0)
-    band = hysteresis * float(np.ptp(z))
-    turns, k, rising = [], 0, None
-    for i in range(1, len(z)):
-        if rising is None:
-            if abs(z[i] - z[0]) > band:
-                rising = z[i] > z[0]
-                k = i
-            continue
-        if (z[i] > z[k]) == rising and z[i] != z[k]:
-            k = i  # a new extreme in the current direction
-        elif abs(z[i] - z[k]) > band:
-            if turns:
-                band = hysteresis * abs(z[k] - z[turns[-1]])
-            turns.append(k)
-            rising, k = not rising, i
-    turns = np.array(turns, dtype=int)
-    return turns, np.abs(np.diff(z[turns]))
+    return [record("frequency", p, world, measured, ref, stable, wall, note=note)]
 
 
 #: The free-free rod of the oscillation case is this many times the cantilever's length,
@@ -329,9 +158,9 @@ def _swing(variant: str, p: CaseParams, world, f1: float, periods: int, height, 
             freq = float(1.0 / (2.0 * np.mean(np.diff(turns)) * p.dt))
         else:
             note = f"{len(turns)} turning points in {n_steps} steps: the tip did not swing"
-    return _record("oscillation", p, world, measured, 1.0, stable, wall, variant=variant, frequency=freq,
-                   frequency_ref=f1, frequency_error=None if freq is None else freq / f1 - 1.0, periods=periods,
-                   note=note, **extra)
+    return record("oscillation", p, world, measured, 1.0, stable, wall, variant=variant, frequency=freq,
+                  frequency_ref=f1, frequency_error=None if freq is None else freq / f1 - 1.0, periods=periods,
+                  note=note, **extra)
 
 
 def drop(p: CaseParams, sim_time: float = 3.0, mass_damping: float = 2.0) -> list[dict]:
@@ -365,19 +194,13 @@ def drop(p: CaseParams, sim_time: float = 3.0, mass_damping: float = 2.0) -> lis
             stable, note = False, str(err)
         wall = time.perf_counter() - t0
         at_rest = stable and rest_at is not None
-        rec = _record("drop", p, world, deepest_late if stable else None, p.radius, stable, wall,
-                      scene=scene, tilt=tilt, mass_damping=mass_damping, impact_penetration=deepest,
-                      at_rest=at_rest, rest_time=rest_at, note=note)
+        rec = record("drop", p, world, deepest_late if stable else None, p.radius, stable, wall,
+                     scene=scene, tilt=tilt, mass_damping=mass_damping, impact_penetration=deepest,
+                     at_rest=at_rest, rest_time=rest_at, note=note)
         # Passing means staying below the radius: report the error against that bound.
         rec["rel_error"] = None if not stable else (deepest_late - p.radius) / p.radius
         out.append(rec)
     return out
-
-
-def _out_of_plane(x: np.ndarray) -> float:
-    """Distance [m] of the vertices from their best-fit plane (rms)."""
-    c = x - x.mean(axis=0)
-    return float(np.linalg.svd(c, compute_uv=False)[-1] / math.sqrt(len(x)))
 
 
 def ring_buckles(p: CaseParams, total_twist: float, perturbation: float = 1e-3) -> tuple[bool, RodSimulator]:
@@ -405,16 +228,16 @@ def ring_buckles(p: CaseParams, total_twist: float, perturbation: float = 1e-3) 
     bend = []
     for _ in range(40):
         world.step(chunk)
-        bend.append(_out_of_plane(world.positions()))
+        bend.append(out_of_plane(world.positions()))
         if bend[-1] > BUCKLED * radius:
             return True, world
     return max(bend[30:]) > 1.02 * max(bend[20:30]), world
 
 
 def michell(p: CaseParams, tol: float = 0.002) -> list[dict]:
-    """Critical twist of a naturally straight ring by bisection (REFERENCE.md case 5)."""
+    """Critical twist of a naturally straight ring by bisection, against Michell's."""
     mat = p.material
-    ref = 2 * math.pi * math.sqrt(3) * mat.alpha / mat.beta
+    ref = reference.michell_critical_twist(mat.alpha, mat.beta)
     lo, hi = 0.5 * ref, 1.5 * ref
     t0 = time.perf_counter()
     stable, note, steps, world, trials = True, "", 0, None, 0
@@ -436,17 +259,17 @@ def michell(p: CaseParams, tol: float = 0.002) -> list[dict]:
     except (DivergenceError, RuntimeError) as err:
         stable, note, measured = False, str(err), None
     wall = time.perf_counter() - t0
-    rec = _record("michell", p, world, measured, ref, stable, wall, beta_over_alpha=mat.beta / mat.alpha,
-                  bracket=[lo, hi], trials=trials, note=note)
+    rec = record("michell", p, world, measured, ref, stable, wall, beta_over_alpha=mat.beta / mat.alpha,
+                 bracket=[lo, hi], trials=trials, note=note)
     rec["steps"], rec["sim_s"] = steps, steps * p.dt
     rec["us_per_step"] = 1e6 * wall / steps if steps else None
     return [rec]
 
 
 def circle(p: CaseParams, max_time: float = 300.0) -> list[dict]:
-    """A clamped rod curled by the end couple 2 pi alpha / L (REFERENCE.md case 3)."""
+    """A clamped rod curled by the end couple 2 pi alpha / L into a closed circle."""
     mat = p.material
-    moment = 2 * math.pi * mat.alpha / p.length
+    moment = reference.closing_couple(mat.alpha, p.length)
     world, _ = p.build.cantilever(p, 0.0, 10.0)
     t0 = time.perf_counter()
     stable, note, measured = True, "", None
@@ -462,7 +285,7 @@ def circle(p: CaseParams, max_time: float = 300.0) -> list[dict]:
     except DivergenceError as err:
         stable, note = False, str(err)
     wall = time.perf_counter() - t0
-    rec = _record("circle", p, world, measured, 0.0, stable, wall, note=note)
+    rec = record("circle", p, world, measured, 0.0, stable, wall, note=note)
     rec["rel_error"] = measured  # already relative to L
     return [rec]
 
@@ -505,18 +328,13 @@ def twist(p: CaseParams, turns: float = 2.0, ramp: float = 2.0, hold: float = 3.
         world.step(int(round(hold / p.dt)))
         measured = float(world.data.actuator_force[0])
         turned = float(world.data.qpos[world.model.joint("turn").qposadr[0]])
-        ref = mat.beta * turned / p.length
+        ref = reference.twist_torque(mat.beta, turned, p.length)
         twist_in_rod = float(world.rod_state("rod").theta[-1] - world.rod_state("rod").theta[0])
     except DivergenceError as err:
         stable, note, twist_in_rod = False, str(err), None
     wall = time.perf_counter() - t0
-    return [_record("twist", p, world, measured, ref, stable, wall, turns=turns,
-                    turned=turned if stable else None, twist_in_rod=twist_in_rod, note=note)]
-
-
-def _max_strain(x: np.ndarray, rest_x: np.ndarray) -> float:
-    le = np.linalg.norm(np.diff(x, axis=0), axis=1)
-    return float(np.max(np.abs(le / np.linalg.norm(np.diff(rest_x, axis=0), axis=1) - 1)))
+    return [record("twist", p, world, measured, ref, stable, wall, turns=turns,
+                   turned=turned if stable else None, twist_in_rod=twist_in_rod, note=note)]
 
 
 def stability(p: CaseParams, steps: int = 300) -> list[dict]:
@@ -534,189 +352,12 @@ def stability(p: CaseParams, steps: int = 300) -> list[dict]:
         for _ in range(steps // 10):
             world.step(10)
             x = world.positions()
-            if _max_strain(x, rest_x) > 0.5 or np.linalg.norm(x[-1] - (0.0, 0.0, 1.0)) > 1.5 * p.length:
+            if max_strain(x, rest_x) > 0.5 or np.linalg.norm(x[-1] - (0.0, 0.0, 1.0)) > 1.5 * p.length:
                 raise DivergenceError(f"runaway shape at step {world.n_steps}")
     except DivergenceError as err:
         stable, note = False, str(err)
     wall = time.perf_counter() - t0
-    rec = _record("stability", p, world, 1.0 if stable else 0.0, 1.0, stable, wall, note=note)
+    rec = record("stability", p, world, 1.0 if stable else 0.0, 1.0, stable, wall, note=note)
     rec["rel_error"] = None
     rec["stable"] = stable
     return [rec]
-
-
-def extreme(p: CaseParams) -> list[dict]:
-    """Extreme cases; measured: what happened ("stable", "diverged", "penetrated").
-
-    soft: E = 1e4 Pa cantilever; steel wire: E = 2e11 Pa, r = 0.5 mm cantilever;
-    impact: a free rod thrown at the floor at 20 m/s; hairpin: a rod folded back on
-    itself (bend radius 2 r) released; edge ratio: a cantilever whose second edge is
-    1000 times shorter than the others; ring 20 turns: a ring twisted 20 full turns
-    (far above Michell's threshold), which writhes; derods has self-contact on, the
-    native rings have none (see :mod:`derods.bench.backends`): "penetrated" if two
-    non-neighbouring parts of the rod come closer than r.
-    """
-    out = []
-    if p.backend == "cable":
-        # A composite cable takes uniform segments and sets shapes only when clamped: no
-        # hairpin, no 1000:1 edges.
-        variants = ["soft", "steel_wire", "impact", "ring_20_turns"]
-    else:
-        variants = ["soft", "steel_wire", "impact", "hairpin", "edge_ratio"] + (
-            ["ring_20_turns"] if "michell" in BACKEND_CASES[p.backend] else [])
-    for name in variants:
-        q = p
-        t0 = time.perf_counter()
-        watching = 0.0  # time spent checking the run, not running it [s]
-        world, outcome, note = None, "stable", ""
-        try:
-            if name in ("soft", "steel_wire"):
-                q = dataclasses.replace(p, young=1e4) if name == "soft" else dataclasses.replace(
-                    p, young=2e11, radius=5e-4, density=7850.0)
-                world, rest_x = q.build.cantilever(q, q.gravity, 1.0)
-                world.step(int(round(2.0 / q.dt)))
-            elif name == "impact":
-                x = shapes.straight(q.length, q.n_edges, start=(-0.5 * q.length, 0.0, 0.3),
-                                    direction=(1.0, 0.0, 0.3))
-                world = q.build.free_rod(q, x, "floor")
-                world.set_velocities(0, np.tile([0.0, 0.0, -20.0], (len(x), 1)))
-                deepest = 0.0
-                for _ in range(int(round(0.5 / q.dt))):
-                    world.step()
-                    deepest = max(deepest, q.radius - float(world.positions()[:, 2].min()))
-                if world.positions()[:, 2].min() < -q.radius:
-                    outcome = "penetrated"  # it went through the floor and stayed there
-                note = f"deepest penetration during impact {1000 * deepest:.1f} mm (r = {1000 * q.radius:g} mm)"
-            elif name == "hairpin":
-                k = q.n_edges // 2
-                s = np.linspace(0, q.length, q.n_edges + 1)
-                bend = 2 * q.radius
-                x = np.stack([np.where(s < q.length / 2, s, q.length - s), np.zeros_like(s),
-                              np.where(s < q.length / 2, 0.0, 2 * bend)], axis=1) + (0.0, 0.0, 0.5)
-                x[k] += (0.0, 0.0, bend)
-                world = q.build.free_rod(q, x, None)
-                world.step(int(round(1.0 / q.dt)))
-            elif name == "edge_ratio":
-                x = shapes.straight(q.length, q.n_edges, start=(0.0, 0.0, 1.0))
-                x[2] = x[1] + (x[2] - x[1]) * 1e-3
-                world = q.build.clamped_rod(q, x, q.gravity, 0.0)
-                world.step(int(round(1.0 / q.dt)))
-            else:  # ring_20_turns
-                world = q.build.twisted_ring(q, 40 * math.pi, self_contact=True)
-                xp = native.ring_vertices(q)
-                xp[:, 2] += 1e-3 * np.sin(2 * np.linspace(0, 2 * math.pi, q.n_edges, endpoint=False))
-                world.set_positions(0, xp)
-                gap = math.inf
-                for _ in range(int(round(1.0 / q.dt)) // 5):  # watch for the ring passing through itself
-                    world.step(5)
-                    t_watch = time.perf_counter()
-                    gap = min(gap, _closest_approach(world.positions(), q.length / q.n_edges))
-                    watching += time.perf_counter() - t_watch
-                note = (f"closest approach of non-neighbouring parts {1000 * gap:.1f} mm "
-                        f"(r = {1000 * q.radius:g} mm)")
-                if gap < q.radius:
-                    outcome = "penetrated"
-            if not np.all(np.isfinite(world.positions())):
-                outcome = "NaN"
-        except DivergenceError as err:
-            outcome, note = "diverged", str(err)
-        except Exception as err:  # a setup the backend refuses is an outcome too
-            outcome, note = "failed", f"{type(err).__name__}: {err}"
-        wall = time.perf_counter() - t0 - watching
-        rec = _record("extreme", q, world, None, None, outcome == "stable", wall, variant=name,
-                      outcome=outcome, note=note)
-        out.append(rec)
-    return out
-
-
-def _closest_approach(x: np.ndarray, spacing: float, samples: int = 8) -> float:
-    """Smallest distance [m] between points of a closed polyline ``x`` (n, 3) that lie
-    more than 3 ``spacing`` apart along it. Each edge is sampled at ``samples`` points,
-    so the answer exceeds the segment-to-segment distance by at most spacing / samples."""
-    e = np.roll(x, -1, axis=0) - x
-    s = (np.arange(samples) + 0.5) / samples
-    pts = (x[:, None, :] + s[None, :, None] * e[:, None, :]).reshape(-1, 3)
-    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(e, axis=1))])
-    along = (arc[:-1, None] + s[None, :] * np.linalg.norm(e, axis=1)[:, None]).ravel()
-    total = arc[-1]
-    sep = np.abs(along[:, None] - along[None, :])
-    sep = np.minimum(sep, total - sep)  # along a closed loop
-    dist = np.linalg.norm(pts[:, None, :] - pts[None, :, :], axis=-1)
-    return float(dist[sep > 3 * spacing].min())
-
-
-def _coupling(p: CaseParams) -> list[dict]:
-    from .coupling import coupling
-
-    return coupling(p)
-
-
-RUNNERS = {"cantilever": cantilever, "frequency": frequency, "drop": drop, "michell": michell,
-           "circle": circle, "twist": twist, "stability": stability, "extreme": extreme,
-           "oscillation": oscillation, "coupling": _coupling}
-
-
-def run(case: str, params: CaseParams) -> list[dict]:
-    """Run one case and return its records."""
-    if case not in RUNNERS:
-        raise ValueError(f"unknown case {case!r}; cases: {', '.join(CASES)}")
-    if case not in BACKEND_CASES[params.backend]:
-        hint = ("; a twisted flex ring needs MuJoCo >= 4.0 (per-edge twist joints): pip install -U mujoco"
-                if (case, params.backend) == ("michell", "flex") else "")
-        raise ValueError(f"case {case!r} is not available for backend {params.backend!r} "
-                         f"(it runs {', '.join(BACKEND_CASES[params.backend]) or 'nothing yet'}){hint}")
-    return RUNNERS[case](params)
-
-
-def environment() -> dict:
-    """Versions and machine, for reports."""
-    import numba
-    import scipy
-
-    return {"python": platform.python_version(), "numpy": np.__version__, "scipy": scipy.__version__,
-            "numba": numba.__version__, "mujoco": mujoco.__version__, "machine": platform.machine(),
-            "processor": platform.processor() or platform.machine()}
-
-
-def format_record(rec: dict) -> str:
-    """One readable line for a record."""
-    parts = [f"{rec['case']}"]
-    if "scene" in rec:
-        parts.append(f"{rec['scene']} tilt {rec['tilt']:g}")
-    if "variant" in rec:
-        parts.append(rec["variant"] + (f": {rec['outcome']}" if "outcome" in rec else ""))
-    if "mass_ratio" in rec:
-        parts.append(f"body {rec['mass_ratio']:g} x the rod's mass")
-    parts.append(f"n={rec['n_edges']} dt={rec['dt']:g} E={rec['young']:.3g} {rec['mode']}")
-    if not rec["stable"]:
-        parts.append(f"UNSTABLE: {rec['note']}")
-    elif rec["measured"] is None:
-        parts.append(rec.get("note", ""))
-    else:
-        m, r = rec["measured"], rec["reference"]
-        err = rec["rel_error"]
-        parts.append(f"measured {m:.6g} reference {r:.6g}" + (f" ({100 * err:+.3f} %)" if err is not None else ""))
-        if "at_rest" in rec:
-            parts.append("at rest" if rec["at_rest"] else "NOT at rest")
-    parts.append(f"{rec['us_per_step']:.0f} us/step" if rec["us_per_step"] else "")
-    return " | ".join(p for p in parts if p)
-
-
-def main(case: str, params: CaseParams, as_json: bool, stream=None) -> int:
-    """Run a case and print its records; returns a process exit code."""
-    stream = sys.stdout if stream is None else stream
-    records = run(case, params)
-    for rec in records:
-        print(json.dumps(rec) if as_json else format_record(rec), file=stream, flush=True)
-    return 0
-
-
-def params_from_args(args) -> CaseParams:
-    """CaseParams from parsed command-line options (see derods.__main__)."""
-    fields = {f.name for f in dataclasses.fields(CaseParams)}
-    p = CaseParams(**{k: v for k, v in vars(args).items() if k in fields and v is not None})
-    if p.backend == "elastica" and getattr(args, "dt", None) is None:
-        from .elastica import search_dt
-
-        p = dataclasses.replace(p, dt=search_dt(p))
-    return p

@@ -8,12 +8,13 @@ mass: beta L is the smallest root of
 
     1 + cos(bL) cosh(bL) + mu bL (cos(bL) sinh(bL) - sin(bL) cosh(bL)) = 0,   mu = m / (rho A L),
 
-f = (bL)^2 / (2 pi) sqrt(alpha / (rho A L^4)) (mu = 0: the bare cantilever's 1.8751).
-The record per mass: ``measured`` the frequency from the tip's zero crossings,
-``reference`` the closed form, ``stable``. It measures how the rod's force reaches the
-body: a held end's holder is solved together with the rod (:mod:`derods.sim.holders`);
-applied one step late instead (:class:`derods.sim.clamps.Reactions` alone, as before),
-every body of 1e-3 .. 1e3 times the rod's mass diverged at dt = 1e-2.
+f = (bL)^2 / (2 pi) sqrt(alpha / (rho A L^4)) (mu = 0: the bare cantilever's 1.8751;
+:func:`derods.reference.tip_mass_frequency`). The record per mass: ``measured`` the
+frequency from the tip's zero crossings, ``reference`` the closed form, ``stable``. It
+measures how the rod's force reaches the body: a held end's holder is solved together
+with the rod (:mod:`derods.sim.holders`); applied one step late instead
+(:class:`derods.sim.clamps.Reactions` alone, as before), every body of 1e-3 .. 1e3
+times the rod's mass diverged at dt = 1e-2.
 """
 
 from __future__ import annotations
@@ -22,36 +23,18 @@ import math
 
 import mujoco
 import numpy as np
-from scipy.optimize import brentq
 
 from .. import shapes
+from ..reference import tip_mass_frequency
 from ..rod import Rod
 from ..sim.divergence import DivergenceError
 from ..sim.world import World
+from .measures import crossing_frequency, record, step_recording, tip_height
 
 #: Body mass over rod mass.
 MASS_RATIOS = (1e-3, 1e-2, 1e-1, 1.0, 10.0, 100.0, 1000.0)
 #: The body: a sphere of this radius [m] (no collisions).
 BOB_RADIUS = 0.01
-
-
-def tip_mass_root(mu: float) -> float:
-    """beta L of the first mode of a clamped-free beam with a tip mass mu times its own."""
-    def f(b):
-        return 1.0 + math.cos(b) * math.cosh(b) + mu * b * (math.cos(b) * math.sinh(b) - math.sin(b) * math.cosh(b))
-
-    # the root falls from 1.8751 (mu = 0) towards 0 as (3 / mu)^(1/4); bracket below the first
-    hi = 1.8751040687 + 1e-9
-    lo = min(1.0, 0.5 * (3.0 / max(mu, 1e-12)) ** 0.25)
-    while f(lo) * f(hi) > 0:
-        lo *= 0.5
-    return brentq(f, lo, hi, xtol=1e-14)
-
-
-def tip_mass_frequency(alpha: float, line_density: float, length: float, mu: float) -> float:
-    """First bending frequency [Hz] of a cantilever with a tip mass mu times its own."""
-    b = tip_mass_root(mu)
-    return b * b / (2.0 * math.pi) * math.sqrt(alpha / (line_density * length**4))
 
 
 def held_world(p, mass: float, joint_damping: float = 0.0) -> World:
@@ -100,8 +83,6 @@ def _bend(world: World, x: np.ndarray, length: float) -> None:
 
 def coupling(p, periods: float = 3.0) -> list[dict]:
     """One record per body mass in MASS_RATIOS (see the module docstring)."""
-    from .cases import _record, crossing_frequency, step_recording, tip_height  # the harness's
-
     mat = p.material
     rod_mass = mat.line_density * p.length
     out = []
@@ -117,8 +98,8 @@ def coupling(p, periods: float = 3.0) -> list[dict]:
             note = f"fewer than two upward crossings in {n_steps} steps"
         if stable and not np.all(np.isfinite(z)) or (stable and np.max(np.abs(z)) > 0.5 * p.length):
             stable, note = False, f"the tip left the swing: |z| up to {np.nanmax(np.abs(z)):.3g} m"
-        out.append(_record("coupling", p, world, measured if stable else None, ref, stable, wall, mass_ratio=mu,
-                           body_mass=mu * rod_mass, note=note))
+        out.append(record("coupling", p, world, measured if stable else None, ref, stable, wall, mass_ratio=mu,
+                          body_mass=mu * rod_mass, note=note))
     return out
 
 

@@ -158,7 +158,7 @@ def largest_stable_dt(n_edges: int, young: float, shear: float, radius: float, d
     """The largest dt [s] at which PyElastica's undamped cantilever stays stable for
     TRIAL_TIME, to 2 significant digits (bisection in log dt from the explicit bound
     h / sqrt(E / rho)), times DT_MARGIN."""
-    from ..rod import Material
+    from ..material import Material
     from ..shapes import cantilever
 
     material = Material(young=young, shear=shear, radius=radius, density=density)

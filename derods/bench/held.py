@@ -57,7 +57,8 @@ import mujoco
 import numpy as np
 
 from .. import shapes
-from ..rod import Material, Rod
+from ..material import Material
+from ..rod import Rod
 from ..sim.divergence import DivergenceError
 from ..sim.world import ContactParams, World
 

@@ -277,7 +277,7 @@ def _oscillation_section(records) -> list[str]:
            "started in its first mode without gravity; the fraction of its amplitude kept per period over 10 "
            "periods (1 for an exact integrator; backward Euler keeps (1 + (omega h)^2)^(-1 / (2 f1 h))) and the "
            "frequency error against Euler-Bernoulli's first mode. The cable carries the joint damping its "
-           "set-up adds (0.01 E I / h, `derods/bench/native.py`), which dominates its loss at every dt. "
+           "set-up adds (0.01 E I / h, `derods/bench/cable.py`), which dominates its loss at every dt. "
            "der/alpha is `World(mode=\"alpha\")` (generalized-alpha, rho_inf = 0.6: second order, no damping of "
            "resolved modes); elastica runs explicitly at its own largest stable dt.", "",
            "| rod | backend/mode | n | dt | amplitude kept per period | frequency error | us/step |",

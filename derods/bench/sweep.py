@@ -19,8 +19,9 @@ import os
 import pathlib
 import sys
 
-from . import cases as bench
 from . import elastica
+from .command import run
+from .params import BACKEND_CASES, BACKENDS, CASES, CaseParams
 
 #: The fields that identify a run (a re-run with the same ones is skipped).
 KEY_FIELDS = ("case", "backend", "n_edges", "dt", "mode", "young", "length", "radius", "density")
@@ -30,7 +31,7 @@ ACCURACY_CASES = ("cantilever", "frequency", "circle", "michell", "twist")
 @dataclasses.dataclass(frozen=True)
 class Job:
     case: str
-    params: bench.CaseParams
+    params: CaseParams
 
     def key(self) -> tuple:
         p = self.params
@@ -61,7 +62,7 @@ def load(path) -> list[dict]:
 def available(backend: str) -> str | None:
     """None if this MuJoCo can run ``backend``, else the message saying how to get it."""
     try:
-        bench.CaseParams(backend=backend)
+        CaseParams(backend=backend)
     except ValueError as err:
         return str(err)
     return None
@@ -71,7 +72,7 @@ def plan(cases, backends, n_edges, dts, modes=("implicit",), young=1e8, **params
     """Every supported combination as a list of jobs; a backend this MuJoCo lacks is
     skipped with a message on stderr saying how to get it. Unknown case or backend names
     raise ValueError with the choices."""
-    for name, given, known in (("case", cases, bench.CASES), ("backend", backends, bench.BACKENDS)):
+    for name, given, known in (("case", cases, CASES), ("backend", backends, BACKENDS)):
         unknown = [c for c in given if c not in known]
         if unknown:
             raise ValueError(f"unknown {name} {', '.join(map(repr, unknown))}; choose from {', '.join(known)}")
@@ -85,13 +86,13 @@ def plan(cases, backends, n_edges, dts, modes=("implicit",), young=1e8, **params
     jobs = []
     for case in cases:
         for backend in usable:
-            if case not in bench.BACKEND_CASES.get(backend, ()):
+            if case not in BACKEND_CASES.get(backend, ()):
                 continue
             for n in n_edges:
                 # PyElastica is explicit: it runs at its own largest stable dt, whatever the plan's.
                 for dt in (dts if backend != "elastica" else [None]):
                     for mode in (modes if backend == "der" else ("implicit",)):
-                        p = bench.CaseParams(n_edges=n, dt=dt or 1.0, young=young, mode=mode, backend=backend,
+                        p = CaseParams(n_edges=n, dt=dt or 1.0, young=young, mode=mode, backend=backend,
                                              **params)
                         if dt is None:
                             p = dataclasses.replace(p, dt=elastica.search_dt(p))
@@ -138,7 +139,7 @@ def full_plan(backends=("der", "flex")) -> list[Job]:
 
 def _run(job: Job) -> list[dict]:
     try:
-        return bench.run(job.case, job.params)
+        return run(job.case, job.params)
     except Exception as err:  # a record of the failure is itself a result
         p = job.params
         return [{"case": job.case, "backend": p.backend, "n_edges": p.n_edges, "dt": p.dt,

@@ -20,11 +20,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import frames, scenes, shapes
-from ..rod import Material, Rod
+from .. import frames, reference, scenes, shapes
+from ..material import Material
+from ..rod import Rod
 from ..sim.world import ContactParams, World
 from ..twist import TwistBoundary
-from ..viz.render import atomic_output
+from ..viz.output import atomic_output
 from .curve import Curve
 
 ENDS = ("free", "pin", "clamp")
@@ -254,7 +255,7 @@ class Session:
         """Michell's critical total twist of a naturally straight ring [rad]:
         2 pi sqrt(3) alpha / beta."""
         mat = self.settings.material
-        return 2.0 * math.pi * math.sqrt(3.0) * mat.alpha / mat.beta
+        return reference.michell_critical_twist(mat.alpha, mat.beta)
 
     def michell_preset(self, twist_ratio: float = 1.2) -> None:
         """Switch to a closed ring (circumference: the curve's length) twisted to
@@ -288,9 +289,9 @@ class Session:
 
     def export(self, path, seconds: float = 5.0, width: int = 960, height: int = 540) -> dict:
         """Film the rod for ``seconds`` [s] from where it is (the edited curve if no world
-        runs) to an MP4 at ``path``, through :func:`derods.viz.render.film` (headless,
+        runs) to an MP4 at ``path``, through :func:`derods.viz.filming.film` (headless,
         written atomically); the session's own world is not advanced."""
-        from ..viz import render
+        from ..viz import filming, render
 
         world = self.build()
         if self.world is not None:  # start the film from the running rod's state
@@ -298,8 +299,8 @@ class Session:
             world.set_velocities("rod", self.world.velocities("rod"))
         render.check_frame_size(world.model, width, height)
         names = {world.model.camera(i).name for i in range(world.model.ncam)}
-        return render.film(world, path, seconds, 30.0, width, height, "main" if "main" in names else None,
-                           progress=False)
+        return filming.film(world, path, seconds, 30.0, width, height, "main" if "main" in names else None,
+                            progress=False)
 
     # -- files ------------------------------------------------------------------------------
     def to_dict(self) -> dict:

@@ -31,24 +31,20 @@ reading of a margin as a skin to push out of. Discrete collision detection
 otherwise finds a rod moving at v only once it is up to v h inside.
 
 Per step, one compiled call (:func:`derods._numba.contact.contact_step`) does it
-all: split MuJoCo's rows, rescale their weights to the implicit metric
-(:meth:`Rows.rescale`), and run Newton's method (:func:`solve`). :class:`Rows`
-and :func:`solve` expose the same arithmetic to tests and to other callers.
+all: split MuJoCo's rows, reweight them for the implicit metric
+(:func:`derods._numba.contact.row_weights`), and run Newton's method
+(:func:`derods._numba.contact_newton.newton`).
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
 from .._numba import contact as _k
-from .._numba import contact_newton as _newton
-from .._numba import contact_rows as _rows
-from .._numba.contact_rows import correct_aref, rows_band
-from ..stencil import XX_BANDWIDTH
 from .._numba.banded import cholesky_into
+from .._numba.contact_rows import correct_aref, efc_triplets
+from ..stencil import XX_BANDWIDTH
 from .implicit import ImplicitSystem
 from .trees import TreeDynamics, tree_dofs
 
@@ -61,119 +57,6 @@ SUPPORTED = np.array([int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL),
 #: problem's force scale.
 MAX_ITER = 30
 TOL = 1e-10
-
-
-@dataclass
-class Rows:
-    """Constraint rows solved by derods.
-
-    Most rows touch one or two neighbouring vertices and fit a window of 9 dofs
-    ("banded" rows: ``col0``, ``jw``); a self-contact between distant parts of a
-    rod does not ("far" rows: ``jf``), and enters the Newton step as a low-rank
-    update. Per row, banded rows first, then far rows:
-
-    aref: reference acceleration [m/s^2], shape (k,). d: row weight 1/R, shape (k,).
-    efc: the rows' indices in MuJoCo's efc arrays, shape (k,).
-    r_over_diag: MuJoCo's R / diagA, shape (k,) (see :meth:`rescale`).
-    col0: first local dof of each banded row's window, shape (k_b,), int64.
-    jw: banded rows' Jacobian entries in their windows, shape (k_b, 9).
-    jf: far rows' Jacobians over all local dofs, shape (k_f, n) (k_f may be 0).
-    """
-
-    col0: np.ndarray
-    jw: np.ndarray
-    aref: np.ndarray
-    d: np.ndarray
-    efc: np.ndarray
-    r_over_diag: np.ndarray | None = None
-    jf: np.ndarray | None = None
-
-    def __post_init__(self):
-        if self.jf is None:
-            self.jf = np.zeros((0, 0))
-
-    def __len__(self) -> int:
-        return len(self.efc)
-
-    @property
-    def n_banded(self) -> int:
-        return len(self.col0)
-
-    def far_csr(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The far rows as CSR (row pointers, columns, values), for n local dofs."""
-        return _rows.far_rows_csr(self.jf if self.jf.shape[0] else np.zeros((0, n)))
-
-    def apply(self, a: np.ndarray) -> np.ndarray:
-        """J a for every row, shape (k,)."""
-        a = np.ascontiguousarray(a, dtype=float)
-        return _rows.apply_all(self.col0, self.jw, *self.far_csr(len(a)), a)
-
-    def transpose_apply(self, lam: np.ndarray, n: int) -> np.ndarray:
-        """J^T lam, shape (n,)."""
-        return _rows.transpose_apply_all(self.col0, self.jw, *self.far_csr(n), np.ascontiguousarray(lam, dtype=float),
-                                      n)
-
-    def band(self, weights: np.ndarray, n: int) -> np.ndarray:
-        """Lower band (9, n) of J_b^T diag(weights) J_b over the banded rows."""
-        return rows_band(self.col0, self.jw, np.ascontiguousarray(weights[: self.n_banded]), n)
-
-    def rescale(self, system: ImplicitSystem) -> None:
-        """Recompute the row weights D = 1 / R for the implicit metric.
-
-        MuJoCo sets R = (1 - d) / d * diagA with diagA its estimate of the
-        Delassus diagonal J M^-1 J^T, which sees the bare vertex masses; in the
-        implicit step a vertex is far heavier, so the same R would make every
-        contact and friction row much softer than authored (friction creeps).
-        Keeping the authored impedance d means R = (1 - d) / d * J A^-1 J^T,
-        whose diagonal needs, for banded rows, only the entries of A^-1 inside
-        the band, and for far rows one solve each.
-        """
-        diag = _k.delassus_diagonal(system.lt, system.g, system.tw_lo, system.tw_hi, system.tw_c, system.s,
-                                    system.z, system.den, self.col0, self.jw, *self.far_csr(system.n))
-        self.d = 1.0 / (self.r_over_diag * diag)
-
-
-def rod_rows(model: mujoco.MjModel, data: mujoco.MjData, local_of_dof: np.ndarray,
-             n: int) -> tuple[Rows | None, np.ndarray]:
-    """Split the constraint rows that act on rod dofs into derods' rows and external force.
-
-    local_of_dof: local index of every MuJoCo dof in the rods' free dofs, -1 elsewhere, (nv,).
-    n: number of local dofs. Returns (rows or None, external force [N] on the local dofs (n,)).
-    """
-    from .._numba.contact_rows import efc_triplets, split_rows
-
-    nefc = data.nefc
-    if nefc == 0:
-        return None, np.zeros(n)
-    row, col, val = efc_triplets(bool(mujoco.mj_isSparse(model)), nefc, model.nv, data.efc_J,
-                                 data.efc_J_rownnz, data.efc_J_rowadr, data.efc_J_colind)
-    types = data.efc_type[:nefc]
-    supported = np.isin(types, SUPPORTED)
-    efc, kb, col0, jw, jf, ext = split_rows(row, col, val, local_of_dof, supported, data.efc_force[:nefc], n,
-                                            WINDOW)
-    if not len(efc):
-        return None, ext
-    rows = Rows(col0, jw, data.efc_aref[efc].copy(), data.efc_D[efc].copy(), efc,
-                data.efc_R[efc] / data.efc_diagA[efc], jf)
-    return rows, ext
-
-
-def solve(system: ImplicitSystem, a0: np.ndarray, rows: Rows, max_iter: int = MAX_ITER,
-          tol: float = TOL) -> tuple[np.ndarray, np.ndarray, int]:
-    """Newton's method on the contact problem in the implicit metric.
-
-    system: the step's factored :class:`derods.sim.implicit.ImplicitSystem`.
-    a0: unconstrained end-of-step acceleration [m/s^2], shape (n,).
-    Returns (a [m/s^2] shape (n,), row forces lam [N] shape (k,), iterations).
-    The objective is convex and piecewise quadratic; each Newton step is
-    followed by an exact line search along its direction.
-    """
-    a, _, lam, it = _newton.newton(system.k_band, system.a_band, system.g, system.tw_lo, system.tw_hi, system.tw_c,
-                              system.s, system.mass, system.m_coef, np.ascontiguousarray(a0, dtype=float), rows.col0,
-                              rows.jw, *rows.far_csr(system.n), np.ascontiguousarray(rows.aref, dtype=float),
-                              np.ascontiguousarray(rows.d, dtype=float), _newton.no_border(system.n, len(rows)), max_iter,
-                              tol)
-    return a, lam, it
 
 
 class ContactStep:
@@ -246,8 +129,6 @@ class ContactStep:
 
     def _touching_trees(self, data: mujoco.MjData) -> np.ndarray:
         """The trees that a constraint row binds to a rod dof this step (sorted)."""
-        from .._numba.contact_rows import efc_triplets
-
         row, col, _ = efc_triplets(self.is_sparse, data.nefc, self.nv, data.efc_J, data.efc_J_rownnz,
                                    data.efc_J_rowadr, data.efc_J_colind)
         on_rod = np.zeros(data.nefc, dtype=bool)

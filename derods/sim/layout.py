@@ -98,7 +98,7 @@ def arena_budget(n_dofs: int, n_bodies_flexes: int) -> int:
 def add_to_spec(spec: mujoco.MjSpec, entries: list[RodEntry], contact, collide: bool) -> None:
     """Add every rod's bodies, slide joints and collision flex to ``spec``.
 
-    contact: :class:`derods.sim.world.ContactParams`; collide: whether the scene has
+    contact: :class:`derods.sim.contact_params.ContactParams`; collide: whether the scene has
     anything the rods can touch (without, their flexes collide with nothing and MuJoCo
     does no collision work for them). A large world (over PROGRESS_FROM vertices) shows
     a progress bar on stderr.

@@ -30,7 +30,8 @@ def warm_up() -> None:
     import numpy as np
 
     from .. import shapes
-    from ..rod import Material, Rod
+    from ..material import Material
+    from ..rod import Rod
     from ..twist import TwistBoundary
     from .world import ContactParams, World
 

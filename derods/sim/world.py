@@ -1,6 +1,9 @@
 """A MuJoCo scene with discrete elastic rods in it: the :class:`World` facade.
 
 Add rods, compile, step, read. Behind it, one module per concern:
+:mod:`~derods.sim.contact_params` (how rods touch the scene), :mod:`~derods.sim.inputs`
+(the modes, the scene read into a spec, each added rod checked and put in shape),
+:mod:`~derods.sim.compile_stage` (from the spec and the rods to the model and the step),
 :mod:`~derods.sim.layout` (the rods as MuJoCo bodies and where their numbers
 live), :mod:`~derods.sim.clamps` (pins and clamps, on the world or on moving
 bodies, and their reaction), :mod:`~derods.sim.holders` (bodies with dofs holding
@@ -23,69 +26,27 @@ adds numerical damping of its own at large steps.
 
 from __future__ import annotations
 
-import sys
 import time
 import warnings
-from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
 
-from .. import frames
 from .._numba.coupling import gather_positions
 from .. import validation
 from ..io import mjcf_load
 from ..rod import Rod, RodState, check_turns
-from ..step import Frames, RodSet
-from .clamps import end_bodies, twist_boundary
+from . import compile_stage
+from .contact_params import ContactParams
 from .divergence import Diagnosis, Guard
-from .scene_checks import fall_step, starts_inside, stretched, stretched_words, thin_geoms
-from .alpha_step import GeneralizedAlpha
-from .integrators import Explicit, Implicit, Projection, explicit_dt_limit
-from .layout import END_KINDS, PROGRESS_FROM, Layout, RodEntry, add_to_spec
+from .inputs import MIN_VERTEX_MASS, MODES, rod_entry, scene_spec
+from .integrators import explicit_dt_limit
+from .layout import RodEntry
+from .scene_checks import stretched
 
-#: Time stepping modes of a World ("auto" picks "implicit" or "explicit").
-MODES = ("auto", "implicit", "alpha", "explicit", "projection")
-#: The step of each mode but "auto" (which picks one of them).
-_STEPS = {"explicit": Explicit, "implicit": Implicit, "projection": Projection, "alpha": GeneralizedAlpha}
-#: The lightest vertex [kg] a World accepts (MuJoCo refuses bodies below its mjMINVAL, 1e-15).
-MIN_VERTEX_MASS = 1e-12
-
-
-@dataclass(frozen=True)
-class ContactParams:
-    """How rods touch the scene.
-
-    friction: sliding friction coefficient. solref: MuJoCo (timeconst [s],
-    dampratio); a time constant near 2 dt keeps fast impacts from sinking in.
-    solimp: MuJoCo's impedance (dmin, dmax, width [m], midpoint, power); an
-    impedance closer to 1 makes contacts harder and lets less friction creep.
-    condim: contact dimensionality (1 frictionless, 3 sliding friction, 4 or 6
-    adds torsional / rolling). self_collision: edges of a rod collide with its
-    other edges (neighbours excluded); off by default. rod_rod: rods touch one
-    another (on by default; hair turns it off, its strands passing through each
-    other; self_collision keeps it on). margin [m]: speculative contacts: rows
-    are made for surfaces closer than this, and (in the implicit mode, against
-    static and mocap bodies) only keep the rod from crossing the surface by the end
-    of the step; a rod faster than margin / dt still can. 0 (default): contacts are
-    found once the rod is inside, up to a step's travel deep. Against bodies that
-    move by their own dofs MuJoCo solves the rows, and reads a margin as a skin
-    the rod rests on. holder_contact: a held edge collides with the body (with dofs)
-    that holds it; off by default, as MuJoCo never collides a body with its parent
-    or children.
-    """
-
-    friction: float = 1.0
-    solref: tuple[float, float] = (0.005, 1.0)
-    solimp: tuple[float, ...] = (0.9, 0.95, 0.001, 0.5, 2.0)
-    condim: int = 3
-    self_collision: bool = False
-    rod_rod: bool = True
-    margin: float = 0.0
-    holder_contact: bool = False
-
-    def __post_init__(self):
-        validation.contact_params(self)
+# ContactParams, MODES and MIN_VERTEX_MASS live in contact_params and inputs; they are
+# named here too, where derods and its users have always imported them from.
+__all__ = ["MIN_VERTEX_MASS", "MODES", "ContactParams", "World"]
 
 
 class World:
@@ -138,19 +99,10 @@ class World:
         validation.world_options(scene, dt, gravity, mode, mass_damping, stiffness_damping, contact, integrator,
                                  strain_limit, scene_checks)
         mjcf_load.check_rods_from(scene, rods_from)
-        if isinstance(scene, mujoco.MjSpec):
-            self.spec = scene
-        elif scene is None:
-            self.spec = mujoco.MjSpec()
-            self.spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-        else:
-            self.spec, declared = mjcf_load.load(str(scene), rods_from)
-        if integrator is not None:
-            self.spec.option.integrator = getattr(mujoco.mjtIntegrator, "mjINT_" + integrator.upper())
-        if dt is not None:
-            self.spec.option.timestep = dt
-        if gravity is not None:
-            self.spec.option.gravity = np.asarray(gravity, dtype=float)
+        declared = mjcf_load.Declared()
+        if scene is not None and not isinstance(scene, mujoco.MjSpec):  # a file, perhaps with rods in it
+            scene, declared = mjcf_load.load(str(scene), rods_from)
+        self.spec = scene_spec(scene, integrator, dt, gravity)
         self.requested_mode = mode
         self.mass_damping = float(mass_damping)
         self.stiffness_damping = float(stiffness_damping)
@@ -166,7 +118,7 @@ class World:
         self.mode = None
         self.explicit_dt_limit = None
         #: The rods the scene file declares (derods.io.mjcf_load), finished at compile.
-        self._declared = [] if isinstance(scene, (mujoco.MjSpec, type(None))) else declared
+        self._declared = declared
         mjcf_load.add_rods(self, self._declared)
 
     # -- building ------------------------------------------------------------
@@ -188,59 +140,8 @@ class World:
         if self._model is not None:
             raise validation.InvalidInputError("add_rod: add rods before the world is compiled (before the first "
                                                "step, or reading model or data)")
-        validation.instance("rod", rod, Rod, "pass derods.Rod(rest_x, material)")
-        for key, val in (("start", start), ("end", end)):
-            validation.choice(key, val, END_KINDS)
-        if rod.closed and (start != "free" or end != "free"):
-            raise validation.InvalidInputError(f"start, end: a ring has no ends, got start={start!r}, end={end!r}: "
-                                               "leave them 'free'")
-        if rod.rest_x.ndim != 2:
-            raise validation.InvalidInputError(f"rod: add rods to a World one at a time (rest_x of shape "
-                                               f"(n_vertices, 3)), got rest_x of shape {rod.rest_x.shape}")
-        name = f"rod{len(self._entries)}" if name is None else name
-        scene_names = {b.name for b in self.spec.bodies} | {f.name for f in self.spec.flexes}
-        validation.rod_name(name, {e.name: e.rod.n_vertices for e in self._entries}, scene_names)
-        rgba = validation.rgba("rgba", rgba)
-        x0 = rod.rest_x if x is None else validation.numeric_array("x", x)
-        if x0.shape != rod.rest_x.shape:
-            raise validation.InvalidInputError(f"x must have shape {rod.rest_x.shape}, got {x0.shape}")
-        if x is not None:
-            validation.points("x", x0, rod.closed)
-            check_turns("x", x0, rod.closed)
-        lightest = float(np.min(rod.vertex_mass))
-        if lightest < MIN_VERTEX_MASS:
-            raise validation.InvalidInputError(
-                f"rod {name!r}: its lightest vertex weighs {lightest:.3g} kg, below what MuJoCo integrates "
-                f"({MIN_VERTEX_MASS:g} kg; radius {rod.material.radius:g} m, density {rod.material.density:g} "
-                f"kg/m^3, edges {float(np.min(rod.rest_len)):.3g} m): use a larger radius, density or edge length")
-        for key, body, kind in (("start", start_body, start), ("end", end_body, end)):
-            if body is None:
-                continue
-            if not isinstance(body, str):
-                validation.refuse(f"{key}_body", "the name (str) of a body of the scene", body,
-                                  "pass the body's name", validation.InvalidTypeError)
-            if kind == "free":
-                raise validation.InvalidInputError(f"{key}_body={body!r} needs {key}='pin' or 'clamp'")
-            if self.spec.body(body) is None or body == "world":
-                names = [b.name for b in self.spec.bodies if b.name and b.name != "world"]
-                raise validation.InvalidInputError(f"{key}_body {body!r} is not a body of the scene; bodies: {names}")
-        if not rod.closed:
-            rod = rod.with_boundary(twist_boundary(rod, start, end, name))
-        if self.requested_mode == "projection":
-            if rod.closed:
-                raise validation.InvalidInputError("mode='projection' handles open rods only; use "
-                                                   "mode='implicit' for rings")
-            # Edge lengths are held by projection; a vanishing spring keeps the term's bookkeeping.
-            # A rod held by a body with dofs keeps its spring: the coupled solve moves rod and
-            # holder together through it (derods.sim.coupled), the projection follows; with
-            # the lengths left to the projection alone the holder felt the rod a step late
-            # and light or stiff holders diverged at dt 1e-2.
-            if not any(_has_dofs(self.spec, b) for b in (start_body, end_body) if b is not None):
-                rod = replace(rod, stretch_stiffness=1e-9 * rod.material.stretch_stiffness)
-        entry = RodEntry(name, rod, x0, start, end, start_body, end_body, rgba)
-        if entry.fixed.all():
-            # (This wording is also the command line's answer.)
-            raise validation.InvalidInputError(f"rod '{name}' has every vertex held; give it more edges")
+        entry = rod_entry(self.spec, self._entries, self.requested_mode, rod, name, start, end, x, rgba,
+                          start_body, end_body)
         self._entries.append(entry)
         return len(self._entries) - 1
 
@@ -251,87 +152,32 @@ class World:
         if not self._entries:
             raise validation.InvalidInputError("the world has no rods; add one with add_rod()")
         t0 = time.perf_counter()
-        # Rods touch the scene's colliding geoms, and one another when there are several:
-        # two rods crossing in an empty world collide too.
-        collide = (any(g.contype or g.conaffinity for g in self.spec.geoms)
-                   or (self.contact.rod_rod and len(self._entries) > 1))
-        add_to_spec(self.spec, self._entries, self.contact, collide)
+        compile_stage.rods_to_spec(self.spec, self._entries, self.contact)
         mjcf_load.finish_spec(self.spec, self._declared)
         t1 = time.perf_counter()
-        n_vertices = sum(e.rod.n_vertices for e in self._entries)
-        if n_vertices > PROGRESS_FROM:
-            print(f"compiling the MuJoCo model ({n_vertices} rod vertices)...", file=sys.stderr, flush=True)
-        with warnings.catch_warnings():
-            # Our flexes carry no MuJoCo elasticity by design: derods supplies it.
-            warnings.filterwarnings("ignore", message=".*has no equality constraints or passive forces")
-            # Rod chunks are attached with their names as they are (see layout._attach).
-            warnings.filterwarnings("ignore", message=".*empty prefix may prevent the model")
-            model = self.spec.compile()
+        model = compile_stage.mujoco_model(self.spec, self._entries)
         mjcf_load.finish_model(model, self._declared)
         t2 = time.perf_counter()
-        data = mujoco.MjData(model)
-        mujoco.mj_forward(model, data)  # positions of every body
-        layout = Layout.build(model, self._entries)
-        rods = RodSet.of([e.rod for e in self._entries])
-        # The rods start at rest in their Bishop frames, twist solved.
-        states = []
-        for e in self._entries:
-            t = frames.tangents(e.x0, e.rod.closed)
-            start = RodState(e.x0.copy(), frames.bishop_frames(e.x0, e.rod.closed, e.rod.u0), t, np.zeros(len(t)))
-            states.append(e.rod.advance(start, e.x0))
-        fr = Frames.of(states)
-        ends = end_bodies(model, data, self._entries, fr.u, fr.t, fr.theta, rods.e_off, fr.theta_end)
+        data, layout, rods, fr, ends = compile_stage.starting_state(model, self._entries)
         self.explicit_dt_limit = explicit_dt_limit(self._entries, layout, rods, fr, ends, data)
         h = model.opt.timestep
-        if self.requested_mode == "auto":
-            self.mode = "implicit" if h > 0.5 * self.explicit_dt_limit else "explicit"
-        else:
-            self.mode = self.requested_mode
-        supported = (mujoco.mjtIntegrator.mjINT_EULER, mujoco.mjtIntegrator.mjINT_IMPLICIT,
-                     mujoco.mjtIntegrator.mjINT_IMPLICITFAST)
-        if self.mode in ("implicit", "alpha") and model.opt.integrator not in supported:
-            name = mujoco.mjtIntegrator(model.opt.integrator).name
-            raise validation.InvalidInputError(
-                f"integrator: the implicit rod step needs MuJoCo's Euler, implicit or implicitfast integrator, "
-                f"the scene uses {name}; pass integrator='implicitfast' to World"
-            )
+        self.mode = compile_stage.pick_mode(self.requested_mode, h, self.explicit_dt_limit)
+        compile_stage.check_integrator(model, self.mode)
         excess = stretched(self._entries)
         diagnosis = Diagnosis(layout.names, h, self.mode, self.mass_damping, excess)
-        self._step = _STEPS[self.mode](model, data, layout, self._entries, rods, fr, ends, self.mass_damping,
-                                       self.stiffness_damping, diagnosis)
-        if self.strain_limit is not None:
-            self._step.strain_limit = self.strain_limit
-        if getattr(self._step, "coupled", None) is not None:
-            self._step.coupled.holder_contact = self.contact.holder_contact
+        self._step = compile_stage.make_step(self.mode, model, data, layout, self._entries, rods, fr, ends,
+                                             self.mass_damping, self.stiffness_damping, diagnosis,
+                                             self.strain_limit, self.contact.holder_contact)
         self._model, self._data, self._layout = model, data, layout
         self._guard = Guard(model, data, layout, self._step, diagnosis)
         if self.scene_checks:
-            for text in self._scene_report(excess):
+            for text in compile_stage.scene_report(self.spec, model, data, self._entries, excess):
                 warnings.warn(text, validation.SceneWarning, stacklevel=3)
         #: Where compile's time went [s]: adding the rods to the spec, MuJoCo's compile
         #: (its body-dof sparsity sorts a row of all nv dofs by insertion: nv^2 / 2 moves,
         #: ~2 s at 96,000 dofs), and the rest (data, layout, rods, the step).
         self.compile_times = {"rods_to_spec": t1 - t0, "mujoco_compile": t2 - t1,
                               "rest": time.perf_counter() - t2}
-
-    def _scene_report(self, excess: dict) -> list:
-        """What :mod:`derods.sim.scene_checks` finds in this compiled world, in words."""
-        m, d = self._model, self._data
-        out = []
-        if any(g.contype or g.conaffinity for g in self.spec.geoms):
-            # Only rods with no end held can fall.
-            free = [e for e in self._entries if e.start == "free" and e.end == "free"]
-            if free:
-                tops = [float(e.x0[:, 2].max()) for e in free]
-                fall = fall_step(m, d, tops, [float(e.rod.length) for e in free])
-                if fall is not None:
-                    out.append(fall)
-                else:
-                    radius = min(e.rod.material.radius for e in free)
-                    out += thin_geoms(m, d, tops, radius)
-            holders = [[m.body(b).id for b in (e.start_body, e.end_body) if b] for e in self._entries]
-            out += starts_inside(m, d, self.rod_names, [e.rod.material.radius for e in self._entries], holders)
-        return out + stretched_words(self._entries, excess)
 
     # -- access --------------------------------------------------------------
     @property
@@ -530,12 +376,3 @@ class World:
                 guard.failed(err)
             guard.after()
 
-
-def _has_dofs(spec: mujoco.MjSpec, name: str) -> bool:
-    """Whether the scene body ``name`` moves by joints of its own or of its ancestors."""
-    body = spec.body(name)
-    while body is not None and body.name != "world":
-        if len(body.joints):
-            return True
-        body = body.parent
-    return False

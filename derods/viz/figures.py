@@ -8,8 +8,8 @@ import math
 import mujoco
 import numpy as np
 
-from .. import frames, shapes
-from . import overlay, render
+from .. import frames, reference, shapes
+from . import output, overlay, render
 
 #: Control points [m] of the default two-segment cubic Bezier curve.
 BEZIER_DEMO = np.array([
@@ -56,7 +56,7 @@ def bezier_frames(out, control_points=BEZIER_DEMO, continuity: str = "C1", n_edg
     segments as dark spheres: across a C1 join the frames turn smoothly, across a
     C0 join they jump with the corner. Returns a summary dict.
     """
-    out = render.check_output_path(out, render.IMAGE_SUFFIXES, "--out")
+    out = output.check_output_path(out, output.IMAGE_SUFFIXES, "--out")
     p = shapes.bezier_control_points(control_points, continuity)
     x = shapes.bezier(control_points, n_edges, continuity)
     t = frames.tangents(x, False)
@@ -83,7 +83,7 @@ def bezier_frames(out, control_points=BEZIER_DEMO, continuity: str = "C1", n_edg
         image = cam.render(data, draw)
     finally:
         cam.close()
-    render.write_image(out, image)
+    output.write_image(out, image)
     turn = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", t[1:], t[:-1]), -1, 1)))
     return {"out": str(out), "continuity": continuity, "n_edges": n_edges, "max_turn_deg": float(turn.max())}
 
@@ -92,13 +92,14 @@ def michell_pair(out, n_edges: int = 50, below: float = 0.9, above: float = 1.2,
                  width: int = 960, height: int = 480) -> dict:
     """Write a PNG of two twisted rings after ``seconds``: at ``below`` and ``above``
     times Michell's critical twist 2 pi sqrt(3) alpha / beta (left planar, right buckled)."""
-    from ..rod import Material, Rod
+    from ..material import Material
+    from ..rod import Rod
     from ..twist import TwistBoundary
     from ..sim.world import ContactParams, World
 
-    out = render.check_output_path(out, render.IMAGE_SUFFIXES, "--out")
+    out = output.check_output_path(out, output.IMAGE_SUFFIXES, "--out")
     mat = Material(young=1e7, radius=0.005, shear=0.5e7)  # alpha = beta
-    theta_c = 2 * math.pi * math.sqrt(3) * mat.alpha / mat.beta
+    theta_c = reference.michell_critical_twist(mat.alpha, mat.beta)
     radius = 0.2
     rings = []
     for frac, centre in ((below, -0.3), (above, 0.3)):
@@ -131,6 +132,6 @@ def michell_pair(out, n_edges: int = 50, below: float = 0.9, above: float = 1.2,
         image = cam.render(data, draw)
     finally:
         cam.close()
-    render.write_image(out, image)
+    output.write_image(out, image)
     bend = [float(np.linalg.svd(r[1] - r[1].mean(0), compute_uv=False)[-1]) for r in rings]
     return {"out": str(out), "theta_c": theta_c, "out_of_plane": bend}

@@ -1,7 +1,7 @@
 """Drawing on top of a rendered scene: frame arrows, strain colouring, rods as lines.
 
 Functions here add geoms to a ``mujoco.MjvScene`` (pass them to
-:meth:`derods.render.Camera.render` as the scene callback). Colours follow the
+:meth:`derods.viz.render.Camera.render` as the scene callback). Colours follow the
 DER paper's figures: the first director (normal) pink, the second (binormal)
 green.
 """

@@ -1,0 +1,155 @@
+"""What a benchmark case measures, and its record.
+
+A record (:func:`record`) is one dict per run with the same fields for every case: what
+was run (case, backend, mujoco_version, n_edges, dt, mode, young, shear, length, radius,
+density, gravity), what came out (measured, reference, rel_error, stable), what it cost
+(steps, sim_s, wall_s, us_per_step) and what the world evaluated (active_terms); cases
+add fields of their own. The rest reads a run: a tip's height and a recording of it, the
+frequency and the amplitudes of a swing, how far a ring left its plane, the largest edge
+strain, the closest approach of a loop to itself, what a rod puts on its clamp.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import mujoco
+import numpy as np
+
+from ..sim.divergence import DivergenceError
+from .backends import RodSimulator
+from .params import CaseParams
+
+
+def record(case: str, p: CaseParams, world: RodSimulator | None, measured, ref, stable: bool,
+           wall: float, **extra) -> dict:
+    """The record of one run of ``case`` (fields: see the module docstring): ``measured``
+    against ``ref``, ``wall`` [s] the run's wall time, ``extra`` the case's own fields."""
+    steps = world.n_steps if world is not None else 0
+    mat = p.material
+    rel = (measured - ref) / ref if (measured is not None and ref) else None
+    return {
+        "case": case,
+        "backend": p.backend,
+        "mujoco_version": mujoco.__version__,
+        "n_edges": p.n_edges,
+        "dt": p.dt,
+        "mode": p.build.mode(p),
+        "young": p.young,
+        "shear": mat.shear_modulus,
+        "length": p.length,
+        "radius": p.radius,
+        "density": p.density,
+        "gravity": p.gravity,
+        "measured": measured,
+        "reference": ref,
+        "rel_error": rel,
+        "stable": stable,
+        "steps": steps,
+        "sim_s": steps * p.dt,
+        "wall_s": wall,
+        "us_per_step": 1e6 * wall / steps if steps else None,
+        "active_terms": sorted({t for terms in world.active_terms.values() for t in terms}) if world else [],
+        **extra,
+    }
+
+
+def clamp_reaction(world, stable: bool) -> dict:
+    """What the rod puts on its clamp (derods' World.reaction: force [N] and moment [N m]
+    about the clamp point, world frame), for the record; nothing for a backend without it."""
+    if not stable or not hasattr(world, "reaction"):
+        return {}
+    force, moment = world.reaction(0, "start")
+    return {"clamp_force": force.tolist(), "clamp_moment": moment.tolist()}
+
+
+def tip_height(x: np.ndarray) -> float:
+    """The last vertex's height above z = 1 m [m] of positions x (n_vertices, 3)."""
+    return float(x[-1, 2] - 1.0)
+
+
+def step_recording(world, n_steps: int, height) -> tuple[np.ndarray, bool, str, float]:
+    """Step ``world`` n_steps times recording height(positions of its first rod) [m];
+    returns (those heights (n_steps,), stable, the divergence's message or "", wall time
+    [s]). After a divergence the heights past it are undefined."""
+    z = np.empty(n_steps)
+    t0 = time.perf_counter()
+    stable, note = True, ""
+    try:
+        for k in range(n_steps):
+            world.step()
+            z[k] = height(world.positions())
+    except DivergenceError as err:
+        stable, note = False, str(err)
+    return z, stable, note, time.perf_counter() - t0
+
+
+def crossing_frequency(z: np.ndarray, dt: float) -> float | None:
+    """The frequency [Hz] of a swing z (n,) sampled every dt [s] after each of n steps,
+    from its upward zero crossings (linearly interpolated); None with fewer than two."""
+    t = dt * np.arange(1, len(z) + 1)
+    up = np.flatnonzero((z[:-1] < 0) & (z[1:] >= 0))
+    crossings = t[up] - z[up] * dt / (z[up + 1] - z[up])
+    if len(crossings) < 2:
+        return None
+    return float(1.0 / np.mean(np.diff(crossings)))
+
+
+def swing_amplitudes(z: np.ndarray, hysteresis: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
+    """The indices of the turning points of a sampled swing z (n,) and the peak-to-peak
+    amplitude between each one and the next, shape (turns - 1,).
+
+    A turning point counts once the swing has come back from it by ``hysteresis`` times
+    the last swing (at first, z's whole range): ripples of faster modes riding on the
+    swing (an explicit integrator keeps them all) are not turns, a decaying swing's
+    late turns are. An extreme the record ends on, unconfirmed, is not counted."""
+    z = np.asarray(z, dtype=float)
+    if len(z) < 3:
+        return np.zeros(0, dtype=int), np.zeros(0)
+    band = hysteresis * float(np.ptp(z))
+    turns, k, rising = [], 0, None
+    for i in range(1, len(z)):
+        if rising is None:
+            if abs(z[i] - z[0]) > band:
+                rising = z[i] > z[0]
+                k = i
+            continue
+        if (z[i] > z[k]) == rising and z[i] != z[k]:
+            k = i  # a new extreme in the current direction
+        elif abs(z[i] - z[k]) > band:
+            if turns:
+                band = hysteresis * abs(z[k] - z[turns[-1]])
+            turns.append(k)
+            rising, k = not rising, i
+    turns = np.array(turns, dtype=int)
+    return turns, np.abs(np.diff(z[turns]))
+
+
+def out_of_plane(x: np.ndarray) -> float:
+    """Distance [m] of the vertices from their best-fit plane (rms)."""
+    c = x - x.mean(axis=0)
+    return float(np.linalg.svd(c, compute_uv=False)[-1] / math.sqrt(len(x)))
+
+
+def max_strain(x: np.ndarray, rest_x: np.ndarray) -> float:
+    """The largest relative change of an edge's length, positions x (n, 3) [m] against
+    rest_x (n, 3) [m] (open rods)."""
+    le = np.linalg.norm(np.diff(x, axis=0), axis=1)
+    return float(np.max(np.abs(le / np.linalg.norm(np.diff(rest_x, axis=0), axis=1) - 1)))
+
+
+def closest_approach(x: np.ndarray, spacing: float, samples: int = 8) -> float:
+    """Smallest distance [m] between points of a closed polyline ``x`` (n, 3) that lie
+    more than 3 ``spacing`` apart along it. Each edge is sampled at ``samples`` points,
+    so the answer exceeds the segment-to-segment distance by at most spacing / samples."""
+    e = np.roll(x, -1, axis=0) - x
+    s = (np.arange(samples) + 0.5) / samples
+    pts = (x[:, None, :] + s[None, :, None] * e[:, None, :]).reshape(-1, 3)
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(e, axis=1))])
+    along = (arc[:-1, None] + s[None, :] * np.linalg.norm(e, axis=1)[:, None]).ravel()
+    total = arc[-1]
+    sep = np.abs(along[:, None] - along[None, :])
+    sep = np.minimum(sep, total - sep)  # along a closed loop
+    dist = np.linalg.norm(pts[:, None, :] - pts[None, :, :], axis=-1)
+    return float(dist[sep > 3 * spacing].min())

@@ -1,0 +1,48 @@
+"""How rods touch the scene: :class:`ContactParams`, the contact settings of a World.
+
+One frozen record for all rods of a :class:`~derods.sim.world.World`, checked when made
+(:func:`derods.validation.contact_params`); :func:`derods.sim.layout.add_to_spec` writes it
+into the rods' flexes, and the contact stage reads its margin and holder contact.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .. import validation
+
+
+@dataclass(frozen=True)
+class ContactParams:
+    """How rods touch the scene.
+
+    friction: sliding friction coefficient. solref: MuJoCo (timeconst [s],
+    dampratio); a time constant near 2 dt keeps fast impacts from sinking in.
+    solimp: MuJoCo's impedance (dmin, dmax, width [m], midpoint, power); an
+    impedance closer to 1 makes contacts harder and lets less friction creep.
+    condim: contact dimensionality (1 frictionless, 3 sliding friction, 4 or 6
+    adds torsional / rolling). self_collision: edges of a rod collide with its
+    other edges (neighbours excluded); off by default. rod_rod: rods touch one
+    another (on by default; hair turns it off, its strands passing through each
+    other; self_collision keeps it on). margin [m]: speculative contacts: rows
+    are made for surfaces closer than this, and (in the implicit mode, against
+    static and mocap bodies) only keep the rod from crossing the surface by the end
+    of the step; a rod faster than margin / dt still can. 0 (default): contacts are
+    found once the rod is inside, up to a step's travel deep. Against bodies that
+    move by their own dofs MuJoCo solves the rows, and reads a margin as a skin
+    the rod rests on. holder_contact: a held edge collides with the body (with dofs)
+    that holds it; off by default, as MuJoCo never collides a body with its parent
+    or children.
+    """
+
+    friction: float = 1.0
+    solref: tuple[float, float] = (0.005, 1.0)
+    solimp: tuple[float, ...] = (0.9, 0.95, 0.001, 0.5, 2.0)
+    condim: int = 3
+    self_collision: bool = False
+    rod_rod: bool = True
+    margin: float = 0.0
+    holder_contact: bool = False
+
+    def __post_init__(self):
+        validation.contact_params(self)
