@@ -156,9 +156,9 @@ def body_frames(x: np.ndarray) -> np.ndarray:
 def box_as_ellipse(h: float, w: float, shear: float, density: float) -> dict:
     """An elliptic section with a box section's stiffnesses and mass per length.
 
-    h, w: the box's half sizes [m] along the first and second director (MuJoCo's body y
-    and z). The ellipse's semi-axes (a, b) = c (h, w), c = (16 / (3 pi))^(1/4), give the
-    box's second moments I1 = (2w)^3 (2h) / 12 and I2 = (2h)^3 (2w) / 12 exactly; the shear
+    h, w: the box's half sizes [m], each the ellipse's semi-axis direction's. The ellipse's
+    semi-axes (a, b) = c (h, w), c = (16 / (3 pi))^(1/4), give the box's second moments
+    pi a b^3 / 4 = (2w)^3 (2h) / 12 and pi a^3 b / 4 = (2h)^3 (2w) / 12 exactly; the shear
     modulus [Pa] is scaled so that G J matches MuJoCo's torsion constant of the rectangle,
     and the density [kg/m^3] so that rho A matches 4 h w rho. Returns the keyword
     arguments of :class:`derods.Material` but ``young``: radius, radius2, shear, density.

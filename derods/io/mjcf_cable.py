@@ -10,7 +10,7 @@ What maps to what (units are the model's: m, kg, s, Pa):
   E I = G J = k l, and a cable with neither is refused;
 - the ``<geom>`` gives the section: a capsule or cylinder of radius ``size[0]``, or a box of
   half sizes ``size[1]`` (along the first body's y axis) and ``size[2]`` (z), read as the
-  ellipse with the same bending and (MuJoCo's) torsion stiffnesses; its mass per length is
+  ellipse with the same bending stiffness about each axis and MuJoCo's torsion stiffness; its mass per length is
   what MuJoCo's geoms weighed (``mass`` per segment, or ``density``; a capsule's caps
   included); ``friction``, ``condim``, ``contype``, ``conaffinity``, ``solref``,
   ``solimp``, ``margin``, ``gap``, ``priority``, ``solmix`` and ``rgba`` go to the rod's
@@ -260,11 +260,13 @@ def read_composite(comp: ET.Element, cls: str | None, classes: dict, instances: 
         refuse(joints[0], "has stiffness besides the cable plugin: derods takes the stiffness from one of them; "
                           "drop the joint's stiffness", label)
     if kind == "box":
+        # The thinner half size is the Material's radius (the collision radius). A derods rod
+        # bends about its first director u0 with E pi a^3 b / 4 (a = radius, measured: a thin
+        # strip with u0 across it sags as the strip would): radius lies across u0, radius2
+        # along it. So u0 runs along the wider half size.
         h, w = float(size[1]), float(size[2])
-        if h > w:  # the thinner half size along the first director: it is the collision radius
-            h, w, u0 = w, h, r0[:, 2]
-        else:
-            u0 = r0[:, 1]
+        u0 = r0[:, 1] if h >= w else r0[:, 2]
+        h, w = min(h, w), max(h, w)
         second = ((2 * w) ** 3 * 2 * h / 12, (2 * h) ** 3 * 2 * w / 12)
         torsion = geo.box_torsion(h, w)
     else:
