@@ -31,8 +31,9 @@ from .._numba import implicit as _imp
 from .._numba.projection import limit_strain, projection_step
 from ..step import EndBodies, Frames, RodSet, Terms, evaluate
 from .clamps import Reactions
-from .contact import ContactStep, ReferenceCorrection
+from .contact import SUPPORTED, ContactStep, ReferenceCorrection
 from .coupled import CoupledStep
+from .forward import Forward
 from .divergence import MAX_SPEED, MAX_STRAIN, Diagnosis
 from .holders import Holders
 from .implicit import ImplicitSystem
@@ -208,6 +209,11 @@ class Implicit(Step):
         self.contact = ContactStep(self.model, self.layout.local_of_dof, self.layout.dof_off, self.layout.n,
                                    self.layout.band_rows, self.holders.trees)
         self.coupled = CoupledStep(self.model, self.layout, self.holders, self.contact) if self.holders else None
+        #: MuJoCo's forward pass, its constraint solver skipped where derods solves every row:
+        #: rows on the rods' dofs, and on their holders' trees (solved with them).
+        solved = self.layout.local_of_dof >= 0
+        solved[self.holders.tree] = True
+        self.forward = Forward(self.model, solved, SUPPORTED)
         rod_flex = [mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_FLEX, e.name) for e in self.entries]
         margin = bool(np.any(self.model.flex_margin[rod_flex] > 0))
         self.reference = ReferenceCorrection(self.model, self.data, margin)
@@ -240,7 +246,7 @@ class Implicit(Step):
         mujoco.mj_checkVel(m, d)
         if self.reference:
             self.reference.update(d)
-        mujoco.mj_forward(m, d)
+        self.forward(d)
         if self.reference:
             self.reference.correct(d)
         if self.holders:

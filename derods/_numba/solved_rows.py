@@ -1,0 +1,29 @@
+"""Whether derods' contact solve takes every constraint row of a step (compiled: called
+each step, :mod:`derods.sim.forward`)."""
+
+from __future__ import annotations
+
+import numba as nb
+
+
+@nb.njit(cache=True)
+def rods_solve_all(is_sparse, nefc, nv, efc_j, rownnz, rowadr, colind, efc_type, supported, solved_dof):
+    """True if each of the nefc rows of MuJoCo's constraint Jacobian efc_J (sparse: CSR
+    rownnz, rowadr, colind; dense: nefc x nv, row-major) is of a type in ``supported`` and
+    has nonzeros only on dofs whose rows derods solves (solved_dof (nv,) bool)."""
+    for r in range(nefc):
+        ok = False
+        for t in supported:
+            if efc_type[r] == t:
+                ok = True
+        if not ok:
+            return False
+        if is_sparse:
+            for p in range(rowadr[r], rowadr[r] + rownnz[r]):
+                if efc_j[p] != 0.0 and not solved_dof[colind[p]]:
+                    return False
+        else:
+            for c in range(nv):
+                if efc_j[r * nv + c] != 0.0 and not solved_dof[c]:
+                    return False
+    return True

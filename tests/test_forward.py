@@ -1,0 +1,101 @@
+"""MuJoCo's forward pass without its constraint solver where derods solves every row
+(derods/sim/forward.py): the same trajectories to the bit, the solver kept where a row is
+not derods', and the stages equal to mj_forward where it does not skip."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+import derods
+from derods import World, scenes, shapes
+from derods.sim.contact import SUPPORTED
+from derods.sim.forward import Forward
+
+
+def _dropped(scene: str, mode: str = "implicit", skip: bool = True, xml: str | None = None) -> tuple[World, int]:
+    """A rod dropped onto ``scene`` (across the box scene's +x edge, 6 cm above its top; 8 cm
+    above the floor) and stepped 150 steps at dt 5e-3 (it lands and lies); returns the world
+    and how many steps skipped MuJoCo's solver."""
+    world = World(mujoco.MjSpec.from_string(xml) if xml else scenes.path(scene), dt=5e-3, mode=mode,
+                  mass_damping=2.0)
+    start = (0.0, 0.01, 0.26) if scene == "box" else (-0.2, 0.01, 0.08)
+    world.add_rod(derods.Rod(shapes.straight(0.4, 20, start=start), derods.Material(young=1e7)), "rod")
+    world.compile()
+    forward = world._step.forward
+    if not skip:
+        forward.enabled = False
+    skipped = 0
+    for _ in range(150):
+        world.step()
+        skipped += forward.skipped
+    return world, skipped
+
+
+def test_skipping_the_solver_changes_no_bit_of_the_trajectory():
+    """A rod landing on the box scene's edge and lying there, implicit and alpha: MuJoCo's
+    constraint solver skipped on most steps (every row is a rod's on static geometry) and
+    the positions and velocities equal, to the bit, those of the same run with the solver
+    run and its answer discarded."""
+    for mode in ("implicit", "alpha"):
+        fast, skipped = _dropped("box", mode)
+        slow, none = _dropped("box", mode, skip=False)
+        assert none == 0 and skipped > 50, (mode, skipped)
+        assert np.array_equal(fast.data.qpos, slow.data.qpos), mode
+        assert np.array_equal(fast.data.qvel, slow.data.qvel), mode
+
+
+def test_the_solver_runs_where_a_row_is_not_the_rods():
+    """A free box resting on the floor beside the rod: its own rows are MuJoCo's to solve,
+    so no step skips, and the box stays on the floor (it would sink with no constraint
+    force) while the rod lands beside it."""
+    xml = """<mujoco><worldbody><geom name="floor" type="plane" size="2 2 0.1"/>
+      <body name="box" pos="0 0.3 0.05"><freejoint/><geom type="box" size="0.05 0.05 0.05" mass="1"/></body>
+    </worldbody></mujoco>"""
+    world, skipped = _dropped("", xml=xml)
+    assert skipped == 0
+    assert abs(world.data.body("box").xpos[2] - 0.05) < 1e-3
+    assert world.positions("rod")[:, 2].min() > 0.0
+
+
+def test_sensors_that_read_forces_keep_the_solver():
+    """A model with an acceleration-stage sensor (a touch sensor) never skips: what it
+    reads stays MuJoCo's."""
+    xml = """<mujoco><worldbody><geom name="floor" type="plane" size="2 2 0.1"/>
+      <body name="pad" pos="0 0.3 0.01"><geom type="box" size="0.02 0.02 0.01"/><site name="pad" size="0.02"/></body>
+    </worldbody><sensor><touch site="pad"/></sensor></mujoco>"""
+    world, skipped = _dropped("", xml=xml)
+    assert not world._step.forward.enabled and skipped == 0
+
+
+def test_the_stages_are_mj_forward_where_nothing_is_skipped():
+    """Forward's stages (the position stage, then mj_forwardSkip) leave every array of
+    MuJoCo's data as mj_forward does, on a model with contacts, a joint limit, an
+    actuator, position and velocity sensors and energy (efc_J's sparse index arrays are
+    left out: unused by a dense model and not rewritten)."""
+    xml = """<mujoco><option><flag energy="enable"/></option><worldbody><geom type="plane" size="2 2 .1"/>
+      <body pos="0 0 .04"><freejoint/><geom type="box" size=".05 .05 .05"/><site name="s"/></body>
+      <body pos=".3 0 .3"><joint name="h" type="hinge" axis="0 1 0" range="-1 1" limited="true"/>
+        <geom type="capsule" fromto="0 0 0 .2 0 0" size=".02"/></body>
+    </worldbody><actuator><motor joint="h"/></actuator>
+    <sensor><framepos objtype="site" objname="s"/><jointvel joint="h"/></sensor></mujoco>"""
+    m = mujoco.MjModel.from_xml_string(xml)
+
+    def fresh():
+        d = mujoco.MjData(m)
+        d.qvel[:] = np.linspace(-0.5, 0.5, m.nv)
+        d.ctrl[:] = 0.3
+        mujoco.mj_step(m, d)
+        return d
+
+    plain, staged = fresh(), fresh()
+    mujoco.mj_forward(m, plain)
+    forward = Forward(m, np.zeros(m.nv, dtype=bool), SUPPORTED)
+    forward(staged)
+    assert plain.nefc > 0 and not forward.skipped
+    skip = {"timer", "solver", "warning", "time", "efc_J_colind", "efc_J_rowadr", "efc_J_rownnz", "efc_J_rowsuper"}
+    for name in dir(plain):
+        a = getattr(plain, name)
+        if name.startswith("_") or name in skip or not isinstance(a, np.ndarray) or a.dtype == object:
+            continue
+        assert np.array_equal(a, getattr(staged, name), equal_nan=True), name
