@@ -6,6 +6,7 @@ Commands:
   frames  draw a Bezier rod with its Bishop frames to a PNG (C0 or C1 joins).
   michell draw twisted rings below and above Michell's critical twist to a PNG.
   view    open a scene with rods in MuJoCo's interactive viewer (needs a display).
+  run     film a MuJoCo model with rods declared in it (cable composites) to an MP4 (headless).
   compare sweep benchmark cases over backends and resolutions; write a report.
   demo    build rods from the paper's test cases and print their frames and energies.
   bench   run a benchmark case (cantilever, frequency, drop, michell, circle, twist, stability, extreme,
@@ -137,6 +138,9 @@ def main(argv: list[str] | None = None) -> int:
     v.add_argument("--shape", choices=["straight", "helix", "bezier"], default="straight")
     v.add_argument("--n-edges", type=_positive_int, default=40, help="edges per rod (default 40)")
     v.set_defaults(func=commands.view)
+    from derods.apps import mjcf_run
+
+    mjcf_run.register(sub, v)  # `derods run MODEL.xml`, and `derods view MODEL.xml`
 
     mi = sub.add_parser("michell", help="twisted rings below and above the critical twist, as a PNG")
     mi.add_argument("--n-edges", type=_positive_int, default=50, help="edges per ring (default 50)")

@@ -34,6 +34,7 @@ import numpy as np
 
 from .._numba.coupling import gather_positions
 from .. import validation
+from ..io import mjcf_load
 from ..rod import Rod, RodState, check_turns
 from . import compile_stage
 from .contact_params import ContactParams
@@ -73,6 +74,9 @@ class World:
         is projected back onto its rest lengths (see
         :data:`derods.sim.integrators.STRAIN_LIMIT`, the default, 1e-3); ``math.inf``
         turns it off.
+    rods_from: which rods a scene file declares are derods': "composite" (default: MuJoCo
+        3.x cable composites, ``<composite type="cable">``) or "flexcomp" (1D flexcomps too);
+        see :mod:`derods.io.mjcf_load` and docs/mjcf.md.
     scene_checks: at compile, warn (:class:`derods.SceneWarning`) of a step too long for
         the fall or for a thin obstacle, a rod starting inside an obstacle, and a rod
         held at both ends that starts longer than its rest length
@@ -91,9 +95,13 @@ class World:
     def __init__(self, scene=None, *, dt: float | None = None, gravity=None, mode: str = "auto",
                  mass_damping: float = 0.0, stiffness_damping: float = 0.0,
                  contact: ContactParams = ContactParams(), integrator: str | None = None,
-                 strain_limit: float | None = None, scene_checks: bool = True):
+                 strain_limit: float | None = None, scene_checks: bool = True, rods_from: str = "composite"):
         validation.world_options(scene, dt, gravity, mode, mass_damping, stiffness_damping, contact, integrator,
                                  strain_limit, scene_checks)
+        mjcf_load.check_rods_from(scene, rods_from)
+        declared = mjcf_load.Declared()
+        if scene is not None and not isinstance(scene, mujoco.MjSpec):  # a file, perhaps with rods in it
+            scene, declared = mjcf_load.load(str(scene), rods_from)
         self.spec = scene_spec(scene, integrator, dt, gravity)
         self.requested_mode = mode
         self.mass_damping = float(mass_damping)
@@ -109,6 +117,9 @@ class World:
         self._guard = None
         self.mode = None
         self.explicit_dt_limit = None
+        #: The rods the scene file declares (derods.io.mjcf_load), finished at compile.
+        self._declared = declared
+        mjcf_load.add_rods(self, self._declared)
 
     # -- building ------------------------------------------------------------
     def add_rod(self, rod: Rod, name: str | None = None, *, start: str = "free", end: str = "free",
@@ -142,8 +153,10 @@ class World:
             raise validation.InvalidInputError("the world has no rods; add one with add_rod()")
         t0 = time.perf_counter()
         compile_stage.rods_to_spec(self.spec, self._entries, self.contact)
+        mjcf_load.finish_spec(self.spec, self._declared)
         t1 = time.perf_counter()
         model = compile_stage.mujoco_model(self.spec, self._entries)
+        mjcf_load.finish_model(model, self._declared)
         t2 = time.perf_counter()
         data, layout, rods, fr, ends = compile_stage.starting_state(model, self._entries)
         self.explicit_dt_limit = explicit_dt_limit(self._entries, layout, rods, fr, ends, data)
