@@ -370,8 +370,8 @@ class EditorApp:
 def serve(scene: str = "floor", host: str = "127.0.0.1", port: int = 8080) -> None:
     """``derods edit``: run the editor until Ctrl-C."""
     app = EditorApp(Session(scene), host=host, port=port)
-    print(f"derods edit: open {app.url} in a browser (Ctrl-C to stop)", flush=True)
-    try:
+    try:  # before the URL is printed: a Ctrl-C right after it is still a clean stop
+        print(f"derods edit: open {app.url} in a browser (Ctrl-C to stop)", flush=True)
         while True:
             time.sleep(1.0)
     except KeyboardInterrupt:
