@@ -158,11 +158,11 @@ def gauss_newton(jac: np.ndarray, k_hh: np.ndarray) -> np.ndarray:
     return 0.5 * (gn + gn.T)
 
 
-def clipped_rotations(k_rr: np.ndarray, gn_rr: np.ndarray) -> np.ndarray:
-    """The rotational block of K_qq (r, r) [N m/rad] made no softer than its Gauss-Newton
-    part gn_rr (:func:`gauss_newton`): gn_rr plus only the positive part (by eigenvalues)
-    of what the differences add to it (the rods' geometric stiffness at the held points,
-    the levers, a clamp's own bending and twisting).
+def no_softer(k: np.ndarray, gn: np.ndarray) -> np.ndarray:
+    """A block of K_qq (r, r) [N/m, N/rad or N m/rad] made no softer than its Gauss-Newton
+    part gn (:func:`gauss_newton`): gn plus only the positive part (by eigenvalues) of what
+    the differences add to it (the rods' geometric stiffness at the held points, the
+    levers, a clamp's own bending and twisting).
 
     The band and K_fq are Gauss-Newton, PSD; the differenced block is exact and may be
     indefinite. Mixed, the holders' Schur complement can drift below their inertia: a 50 g
@@ -170,9 +170,15 @@ def clipped_rotations(k_rr: np.ndarray, gn_rr: np.ndarray) -> np.ndarray:
     below the arm's 0.00052 kg m^2 over ten steps while swinging back, and diverged (dt
     1e-2, the base moving 1 cm). Kept at least Gauss-Newton, the Schur complement stays
     above the inertia (a Schur complement of a PSD matrix adds to it); the negative part
-    left out acts one step late, as in the rods' own band."""
-    lam, vec = np.linalg.eigh(0.5 * (k_rr + k_rr.T) - gn_rr)
-    return gn_rr + (vec * np.maximum(lam, 0.0)) @ vec.T
+    left out acts one step late, as in the rods' own band. Where clamps turn their frames,
+    the cross terms between a body's translations and rotations carry the clamp's bending
+    too, and with only the rotations' block kept so, a free 1 kg body (1e-3 kg m^2) clamping
+    the end of a rod clamped to the world pitched 3-5x faster every step under gravity and
+    diverged at dt 1e-2; the whole K_qq kept so, it swings. (Where only points are held,
+    the cross terms are the levers alone, and the whole kept so made a 1 g box landing on
+    its pinned rod at dt 5e-3 diverge: there only the rotations' block is.)"""
+    lam, vec = np.linalg.eigh(0.5 * (k + k.T) - gn)
+    return gn + (vec * np.maximum(lam, 0.0)) @ vec.T
 
 
 class Holders:
@@ -337,15 +343,20 @@ class Holders:
         k_f = k_fh @ jac + frame
         # Translations: K_qq's rows and columns J^T K_hh J, the band's own Gauss-Newton blocks
         # (moving a body along a line moves its held points rigidly, no lever turns); the
-        # rotations' by the differences above, kept no softer than that (clipped_rotations).
+        # rotations' by the differences above; all of it kept no softer than Gauss-Newton
+        # (no_softer): the rotations' block alone where only points are held, the whole of
+        # K_qq where clamps turn their frames.
         t, r = ~self._eps_rot, self._eps_rot
         k_hh = gather(self._bands, self._held_blocks, (3 * len(self.held), 3 * len(self.held)))
         gn = gauss_newton(jac, k_hh)
-        rr = np.ix_(r, r)
-        k_q[rr] = clipped_rotations(k_q[rr], gn[rr])
         if t.any():
             k_q[np.ix_(t, t)] = gn[np.ix_(t, t)]
             k_q[np.ix_(r, t)] = k_q[np.ix_(t, r)].T  # the rotations' columns, differenced, give both
+        if turns:
+            k_q = no_softer(k_q, gn)
+        else:
+            rr = np.ix_(r, r)
+            k_q[rr] = no_softer(k_q[rr], gn[rr])
         if self._translation is not None:
             # K_qf times every free vertex moved along x, y, z: k_f's rows summed by axis
             k_q = invariant(k_q, k_f.reshape(-1, 3, k).sum(axis=0).T, self._translation)
