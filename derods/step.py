@@ -222,9 +222,17 @@ def evaluate(rods: RodSet, frames: Frames, x: np.ndarray, place: np.ndarray, out
     ``place`` local to each rod). Returns the index of the first rod whose edge strain is
     not finite or exceeds ``strain_limit``, else -1.
     """
-    from ._numba.step import rods_step
+    global _rods_step
+    if _rods_step is None:
+        from ._numba.calls import Bound
+        from ._numba.step import rods_step
 
+        _rods_step = Bound(rods_step)
     if bands is None:
         bands, band_of_rod = out.band[None], np.zeros(rods.n_rods, dtype=np.int64)
     out.strain[:] = strain_limit
-    return rods_step(rods, ends, frames, x, xmat, place, bands, band_of_rod, out)
+    return _rods_step(rods, ends, frames, x, xmat, place, bands, band_of_rod, out)
+
+
+#: The compiled rod step, called without retyping the same bundles (derods._numba.calls).
+_rods_step = None

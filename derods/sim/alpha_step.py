@@ -12,6 +12,7 @@ import mujoco
 import numpy as np
 
 from .._numba import generalized_alpha as _ga
+from .._numba.calls import Bound
 from .._numba.projection import limit_strain, predict_into
 from ..step import evaluate
 from . import generalized_alpha as ga
@@ -48,6 +49,7 @@ class GeneralizedAlpha(Implicit):
     def __init__(self, *args, rho_inf: float = ga.RHO_INF, **kwargs):
         super().__init__(*args, **kwargs)
         self.coefficients = ga.Coefficients.from_rho_inf(rho_inf)
+        self._alpha_step = Bound(_ga.alpha_step)  # the same bundles every step
         self.a_prev = np.zeros(self.layout.n)
         self._w = np.zeros(self.layout.n)
         self._zero = np.zeros(self.layout.n)
@@ -149,8 +151,8 @@ class GeneralizedAlpha(Implicit):
 
     def _solve(self, lay, t, s, c) -> None:
         """One linearized solve about x0 + offset, into self.a0 (the unconstrained qacc)."""
-        _ga.alpha_step(s.arrays, t, lay.places, self.params, c, self.qvel, self.xfrc_applied, self.a_prev,
-                       self._offset, self.v, self.other, self._rhs, self._kv, self._w, self.a0)
+        self._alpha_step(s.arrays, t, lay.places, self.params, c, self.qvel, self.xfrc_applied, self.a_prev,
+                         self._offset, self.v, self.other, self._rhs, self._kv, self._w, self.a0)
 
     def _contact(self, d: mujoco.MjData) -> np.ndarray | None:
         a = self.contact(d, self.system, self.a0)

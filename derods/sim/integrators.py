@@ -28,6 +28,7 @@ import numpy as np
 
 from .._numba import coupling as _io
 from .._numba import implicit as _imp
+from .._numba.calls import Bound
 from .._numba.projection import limit_strain, projection_step
 from ..step import EndBodies, Frames, RodSet, Terms, evaluate
 from .clamps import Reactions
@@ -79,6 +80,7 @@ class Step:
         self.warnings = data.warning.number
         self.gravity = np.array(model.opt.gravity, dtype=float)
         self.params = _imp.StepParams(self.h, mass_damping, stiffness_damping, self.gravity)
+        self._unconstrained_step = Bound(_imp.unconstrained_step)  # the same bundles every step
         n = layout.n
         self.x = np.zeros_like(layout.x0)
         self.terms = Terms.empty(rods.n_rods, rods.n_vertices, n, layout.band_rows)
@@ -152,8 +154,8 @@ class Step:
             self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)
 
     def _unconstrained(self, lay, t, s) -> None:
-        _imp.unconstrained_step(s.arrays, t, lay.places, self.params, self.qvel, self.xfrc_applied, self.v,
-                                self.other, self._rhs, self._kv, self.a0)
+        self._unconstrained_step(s.arrays, t, lay.places, self.params, self.qvel, self.xfrc_applied, self.v,
+                                 self.other, self._rhs, self._kv, self.a0)
 
     def carried(self) -> list[np.ndarray]:
         """The arrays this mode carries from one step to the next (beside MuJoCo's state),
