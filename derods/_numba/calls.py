@@ -26,19 +26,21 @@ class Bound:
     def __init__(self, kernel):
         self.kernel = kernel
         self._resolved = {}  # ids of the arguments -> (the arguments, the compiled function)
-        self._seen = None  # ids of the last call's arguments, resolved when they come again
+        self._seen = set()  # ids of recent calls' arguments, resolved when they come again
 
     def __call__(self, *args):
         key = tuple(map(id, args))
         hit = self._resolved.get(key)
         if hit is not None:
             return hit[1](*args)
-        if key == self._seen:
+        if key in self._seen:
             if len(self._resolved) >= KEEP:
                 self._resolved.pop(next(iter(self._resolved)))
             sig = tuple(self.kernel.typeof_pyval(a) for a in args)
             entry = self.kernel.compile(sig)
             self._resolved[key] = (args, entry)
             return entry(*args)
-        self._seen = key
+        if len(self._seen) >= 4 * KEEP:
+            self._seen.clear()
+        self._seen.add(key)
         return self.kernel(*args)
