@@ -9,7 +9,8 @@ solve: a fifth of a small world's step (26 us for a 20-edge cantilever, measured
 bundles are immutable and an array's dtype, dimensions and layout never change, so the
 same argument objects have the same types: :class:`Bound` resolves the compiled function
 for them once and then calls it directly while they come back; any other arguments go
-through numba's dispatcher as usual.
+through numba's dispatcher as usual. The contact stage's rows are views of MuJoCo's data
+made afresh each step, typed by MuJoCo: it keys them by the data (:meth:`Bound.keyed`).
 """
 
 from __future__ import annotations
@@ -29,18 +30,25 @@ class Bound:
         self._seen = set()  # ids of recent calls' arguments, resolved when they come again
 
     def __call__(self, *args):
-        key = tuple(map(id, args))
-        hit = self._resolved.get(key)
+        return self.keyed(args, args)
+
+    def keyed(self, key, args):
+        """``kernel(*args)``, its compiled function remembered for the objects of ``key``
+        (a tuple): the arguments themselves, or in place of an argument made afresh for
+        each call, an object that fixes its type (MuJoCo's data, for a bundle of its views:
+        their dtypes, dimensions and layouts are MuJoCo's, whatever their lengths)."""
+        ids = tuple(map(id, key))
+        hit = self._resolved.get(ids)
         if hit is not None:
             return hit[1](*args)
-        if key in self._seen:
+        if ids in self._seen:
             if len(self._resolved) >= KEEP:
                 self._resolved.pop(next(iter(self._resolved)))
             sig = tuple(self.kernel.typeof_pyval(a) for a in args)
             entry = self.kernel.compile(sig)
-            self._resolved[key] = (args, entry)
+            self._resolved[ids] = (key, entry)
             return entry(*args)
         if len(self._seen) >= 4 * KEEP:
             self._seen.clear()
-        self._seen.add(key)
+        self._seen.add(ids)
         return self.kernel(*args)

@@ -43,6 +43,7 @@ import numpy as np
 
 from .._numba import contact as _k
 from .._numba.banded import cholesky_into
+from .._numba.calls import Bound
 from .._numba.contact_rows import Contacts, correct_aref, efc_triplets
 from ..stencil import XX_BANDWIDTH
 from .implicit import ImplicitSystem
@@ -97,6 +98,7 @@ class ContactStep:
         self._dof_tree = np.where(joins[dof_tree], dof_tree, -1)
         self.bodies = bool(np.any(self._dof_tree >= 0))
         self._dynamics = TreeDynamics(model) if self.bodies else None
+        self._contact_step = Bound(_k.contact_step)
 
     def __call__(self, data: mujoco.MjData, system: ImplicitSystem, a0: np.ndarray) -> np.ndarray | None:
         """The acceleration [m/s^2] (n,) with contacts, or None if no row touches a rod."""
@@ -119,8 +121,9 @@ class ContactStep:
         """The compiled contact stage over the given dofs (the rods', or the rods' and some
         trees'; system: A over them, :class:`derods._numba.implicit.System`), into a_out and
         force_out; 1 if a row touched them."""
-        return _k.contact_step(self.rows(data), SUPPORTED, local_of_dof, dof_off, WINDOW, system, a0, a_out,
-                               force_out, MAX_ITER, TOL)
+        rest = (SUPPORTED, local_of_dof, dof_off, WINDOW, system, a0, a_out, force_out, MAX_ITER, TOL)
+        # The rows are views of MuJoCo's data made afresh each step; their types are the data's.
+        return self._contact_step.keyed((data,) + rest, (self.rows(data),) + rest)
 
     def rows(self, data: mujoco.MjData) -> _k.Efc:
         """MuJoCo's constraint rows of this step, as the compiled stage reads them."""
