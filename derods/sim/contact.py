@@ -122,7 +122,9 @@ class ContactStep:
         trees'; system: A over them, :class:`derods._numba.implicit.System`), into a_out and
         force_out; 1 if a row touched them."""
         rest = (SUPPORTED, local_of_dof, dof_off, WINDOW, system, a0, a_out, force_out, MAX_ITER, TOL)
-        # The rows are views of MuJoCo's data made afresh each step; their types are the data's.
+        # The rows are views of MuJoCo's data made afresh each step: flat arrays of its own
+        # (not views into an array of structs, as data.contact's are, whose layout changes
+        # with their count), so their types are the data's.
         return self._contact_step.keyed((data,) + rest, (self.rows(data),) + rest)
 
     def rows(self, data: mujoco.MjData) -> _k.Efc:
