@@ -135,42 +135,47 @@ def rods_step(rods, ends, frames, x, xmat, place, bands, band_of_rod, out):
     naturally curved (Newton twist solve). Returns the first rod whose largest |strain| is
     not finite or exceeds ``out.strain`` on entry, else -1 (out.strain (n_rods,): limit
     in, value out)."""
-    v_off, e_off = rods.v_off, rods.e_off
+    # The bundles' fields read once: a field read in the loop costs a reference count per rod.
+    v_off, e_off, rest_len, ks, kind, closed = rods.v_off, rods.e_off, rods.rest_len, rods.ks, rods.kind, rods.closed
+    clamped, theta_first, theta_last = rods.clamped, rods.theta_first, rods.theta_last
+    u, t, theta, theta_end = frames.u, frames.t, frames.theta, frames.theta_end
+    clamp_body, clamp_dir = ends.body, ends.director
+    grad, g_tw, strain, energy, lam, coef, end_moment = out.grad, out.g_tw, out.strain, out.energy, out.lam, out.coef, \
+        out.end_moment
     n_rods = len(v_off) - 1
     max_nv = 0
     for i in range(n_rods):
         max_nv = max(max_nv, v_off[i + 1] - v_off[i])
     work = Scratch(np.empty(max_nv), np.empty(max_nv), np.empty((max_nv, 3)), np.empty((3, 3)), np.empty((3, 3)),
                    np.empty((6, 6)), np.empty((6, 3, 3)))
-    grad, g_tw, strain = out.grad, out.g_tw, out.strain
+    edge_len, blocks = work.edge_len, work.blocks
     bands[:] = 0.0
     first_bad = -1
     for i in range(n_rods):
         v0, v1 = v_off[i], v_off[i + 1]
         e0, e1 = e_off[i], e_off[i + 1]
         ab = bands[band_of_rod[i]]
-        xi, ui, ti, thi = x[v0:v1], frames.u[e0:e1], frames.t[e0:e1], frames.theta[e0:e1]
-        closed = rods.closed[i]
-        e_s, st = edges(xi, ui, ti, rods.rest_len[e0:e1], rods.ks[i], closed, place[v0:v1], grad[v0:v1], ab,
-                        work.edge_len, work.blocks)
-        th_first, th_last = turn_clamps(ui, ti, e1 - e0, ends.body[i], ends.director[i], frames.theta_end[i], xmat,
-                                        rods.theta_first[i], rods.theta_last[i])
-        if rods.kind[i] == 1:
+        xi, ui, ti, thi = x[v0:v1], u[e0:e1], t[e0:e1], theta[e0:e1]
+        e_s, st = edges(xi, ui, ti, rest_len[e0:e1], ks[i], closed[i], place[v0:v1], grad[v0:v1], ab, edge_len,
+                        blocks)
+        th_first, th_last = turn_clamps(ui, ti, e1 - e0, clamp_body[i], clamp_dir[i], theta_end[i], xmat,
+                                        theta_first[i], theta_last[i])
+        if kind[i] == 1:
             e_b, lm, cf = isotropic_joints(rods, i, ti, ui, thi, th_first, th_last, place[v0:v1], grad[v0:v1], ab,
                                            g_tw[v0:v1], work)
-            held = rods.clamped[i] and not closed
-            out.end_moment[i, 0] = -lm if held else 0.0
-            out.end_moment[i, 1] = lm if held else 0.0
+            held = clamped[i] and not closed[i]
+            end_moment[i, 0] = -lm if held else 0.0
+            end_moment[i, 1] = lm if held else 0.0
         else:
             g_tw[v0:v1] = 0.0
             e_b, m_first, m_last = material_rod(rods, i, ti, ui, thi, th_first, th_last, place[v0:v1], grad[v0:v1],
                                                 ab, work)
             lm, cf = 0.0, 0.0
-            out.end_moment[i, 0] = m_first
-            out.end_moment[i, 1] = m_last
-        out.energy[i] = e_s + e_b
-        out.lam[i] = lm
-        out.coef[i] = cf
+            end_moment[i, 0] = m_first
+            end_moment[i, 1] = m_last
+        energy[i] = e_s + e_b
+        lam[i] = lm
+        coef[i] = cf
         if first_bad < 0 and not st <= strain[i]:
             first_bad = i
         strain[i] = st
