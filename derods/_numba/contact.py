@@ -142,9 +142,10 @@ def contact_step(efc, supported_types, local_of_dof, dof_off, width, system, a0,
     if n_blocks == 0:
         return 0
     supported = np.zeros(nefc, dtype=np.bool_)
+    efc_type = efc.type
     for r in range(nefc):
         for q in range(len(supported_types)):
-            if efc.type[r] == supported_types[q]:
+            if efc_type[r] == supported_types[q]:
                 supported[r] = True
     a_out[:] = a0
     force_out[:] = 0.0

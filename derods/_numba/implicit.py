@@ -139,8 +139,9 @@ def twist_terms(system, terms, places):
     """The rods' twist terms into ``system`` (:class:`System`): each term's c from its rod's
     ``terms.coef`` and the directions g from ``terms.g_tw`` on the free dofs
     (:class:`derods.step.Terms`, :class:`Places`)."""
-    for i in range(len(system.tw_rod)):
-        system.tw_c[i] = terms.coef[system.tw_rod[i]]
+    tw_rod, tw_c, coef = system.tw_rod, system.tw_c, terms.coef
+    for i in range(len(tw_rod)):
+        tw_c[i] = coef[tw_rod[i]]
     gather_dofs(terms.g_tw, places.free_vertex, system.g)
 
 
