@@ -8,7 +8,9 @@ positive semi-definite Hessian as one lower band over the dofs in their solve
 order. Rods of any sizes are laid end to end in flat arrays (:class:`RodSet`,
 frozen; :class:`Frames`, the state), so one compiled call
 (:func:`derods._numba.step.rods_step`) serves them all, and Python's work per
-step does not grow with the number of rods.
+step does not grow with the number of rods. The bundles are named tuples, which the
+compiled step takes as they are: the frozen :class:`RodSet` and :class:`EndBodies`, the
+state :class:`Frames` and the outputs :class:`Terms` (their arrays are changed in place).
 
 The compiled path covers every rod: isotropic, naturally straight ones with the
 twist in closed form, anisotropic or naturally curved ones with Newton's method
@@ -19,16 +21,14 @@ tests/test_step.py.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
 from .twist import TwistBoundary
 
 
-@dataclass(frozen=True)
-class RodSet:
+class RodSet(NamedTuple):
     """Rods laid end to end: per-rod constants and offsets into flat per-vertex,
     per-edge and per-joint arrays (rod i owns vertices v_off[i]:v_off[i + 1], etc.).
 
@@ -136,8 +136,7 @@ class RodSet:
         return int(self.e_off[-1])
 
 
-@dataclass
-class Frames:
+class Frames(NamedTuple):
     """What the step carries from one step to the next, for every rod of a set.
 
     u: reference directors, shape (n_edges, 3). t: unit tangents they were last
@@ -166,8 +165,7 @@ class Frames:
         return Frames(self.u.copy(), self.t.copy(), self.theta.copy(), self.theta_end.copy())
 
 
-@dataclass(frozen=True)
-class EndBodies:
+class EndBodies(NamedTuple):
     """Clamps held by moving bodies: each such clamped edge's material director turns with
     its body. body: MuJoCo body id per rod and end (start, end), -1 where none, shape
     (n_rods, 2), int64. director: the clamp's material director in the body's frame,
@@ -181,8 +179,7 @@ class EndBodies:
         return cls(np.full((n_rods, 2), -1, dtype=np.int64), np.zeros((n_rods, 2, 3)))
 
 
-@dataclass
-class Terms:
+class Terms(NamedTuple):
     """What :func:`evaluate` fills in, per set (preallocate once with :meth:`empty`).
 
     energy: elastic energy [J], shape (n_rods,). grad: dE/dx [N], shape (n_vertices, 3).
@@ -225,16 +222,17 @@ def evaluate(rods: RodSet, frames: Frames, x: np.ndarray, place: np.ndarray, out
     ``place`` local to each rod). Returns the index of the first rod whose edge strain is
     not finite or exceeds ``strain_limit``, else -1.
     """
-    from ._numba.step import rods_step
+    global _rods_step
+    if _rods_step is None:
+        from ._numba.calls import Bound
+        from ._numba.step import rods_step
 
+        _rods_step = Bound(rods_step)
     if bands is None:
         bands, band_of_rod = out.band[None], np.zeros(rods.n_rods, dtype=np.int64)
     out.strain[:] = strain_limit
-    return rods_step(x, rods.v_off, rods.e_off, rods.j_off, rods.rest_len, rods.vlen, rods.mbar, rods.wbar,
-                     rods.edge_pos, rods.ks, rods.alpha, rods.bend, rods.beta, rods.kind, rods.closed, rods.has_twist,
-                     rods.clamped, rods.anchor_last, rods.fix_first, rods.fix_last, rods.theta_first, rods.theta_last,
-                     rods.total_twist, ends.body, ends.director, frames.theta_end, xmat, place, band_of_rod,
-                     frames.u, frames.t, frames.theta, out.grad, bands, out.g_tw, out.energy, out.lam, out.coef,
-                     out.end_moment, out.strain)
+    return _rods_step(rods, ends, frames, x, xmat, place, bands, band_of_rod, out)
 
 
+#: The compiled rod step, called without retyping the same bundles (derods._numba.calls).
+_rods_step = None

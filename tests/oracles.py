@@ -80,16 +80,14 @@ def implicit_system(h: float, offsets: np.ndarray, bands: list[np.ndarray],
     for k, i in enumerate(tw):
         system.g[offsets[i]:offsets[i + 1]] = rank1[i][0]
         system.tw_c[k] = rank1[i][1]
-    _implicit.factor_system(system.k_band, system.mass, system.m_coef, system.s, system.a_band, system.lt,
-                            system.g, system.tw_lo, system.tw_hi, system.tw_c, system.z, system.den)
+    _implicit.factor_system(system.arrays, system.m_coef, system.s)
     return system
 
 
 def k_matvec(system: ImplicitSystem, w: np.ndarray) -> np.ndarray:
     """K w, w shape (n,)."""
     y = np.empty(system.n)
-    _implicit.k_matvec_into(system.k_band, system.g, system.tw_lo, system.tw_hi, system.tw_c,
-                            np.ascontiguousarray(w, dtype=float), y)
+    _implicit.k_matvec_into(system.arrays, np.ascontiguousarray(w, dtype=float), y)
     return y
 
 
@@ -157,15 +155,18 @@ class ContactRows:
         """The far rows as CSR (row pointers, columns, values), for n local dofs."""
         return _rows.far_rows_csr(self.jf if self.jf.shape[0] else np.zeros((0, n)))
 
+    def rows(self, n: int) -> _rows.Rows:
+        """The rows as the compiled products take them, for n local dofs."""
+        return _rows.Rows(self.col0, self.jw, *self.far_csr(n))
+
     def apply(self, a: np.ndarray) -> np.ndarray:
         """J a for every row, shape (k,)."""
         a = np.ascontiguousarray(a, dtype=float)
-        return _rows.apply_all(self.col0, self.jw, *self.far_csr(len(a)), a)
+        return _rows.apply_all(self.rows(len(a)), a)
 
     def transpose_apply(self, lam: np.ndarray, n: int) -> np.ndarray:
         """J^T lam, shape (n,)."""
-        return _rows.transpose_apply_all(self.col0, self.jw, *self.far_csr(n),
-                                         np.ascontiguousarray(lam, dtype=float), n)
+        return _rows.transpose_apply_all(self.rows(n), np.ascontiguousarray(lam, dtype=float), n)
 
     def band(self, weights: np.ndarray, n: int) -> np.ndarray:
         """Lower band (9, n) of J_b^T diag(weights) J_b over the banded rows."""
@@ -181,10 +182,8 @@ def contact_solve(system: ImplicitSystem, a0: np.ndarray, rows: ContactRows, max
     a0: unconstrained end-of-step acceleration [m/s^2], shape (n,).
     Returns (a [m/s^2] shape (n,), row forces lam [N] shape (k,), iterations).
     """
-    a, _, lam, it = _newton.newton(system.k_band, system.a_band, system.g, system.tw_lo, system.tw_hi,
-                                   system.tw_c, system.s, system.mass, system.m_coef,
-                                   np.ascontiguousarray(a0, dtype=float), rows.col0, rows.jw,
-                                   *rows.far_csr(system.n), np.ascontiguousarray(rows.aref, dtype=float),
+    a, _, lam, it = _newton.newton(system.arrays, np.ascontiguousarray(a0, dtype=float), rows.rows(system.n),
+                                   np.ascontiguousarray(rows.aref, dtype=float),
                                    np.ascontiguousarray(rows.d, dtype=float), _newton.no_border(system.n, len(rows)),
                                    max_iter, tol)
     return a, lam, it

@@ -12,6 +12,8 @@ are kept sparse, as CSR (``fptr``, ``fcol``, ``fval``). The Newton solve itself 
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba as nb
 import numpy as np
 
@@ -19,15 +21,38 @@ from .banded import inverse_band, solve_columns
 from .contact_blocks import partition
 from .contact_newton import newton, no_border
 from .dense import inverse_quadratic_rows
-from .contact_rows import apply_all, efc_triplets, far_columns, far_rows_csr, rows_apply, rows_diag, split_rows
+from .contact_rows import Rows, apply_all, efc_triplets, far_columns, far_rows_csr, rows_apply, rows_diag, split_rows
 from .contact_rows import transpose_apply_all
-from .implicit import sm_solve_into
+from .implicit import System, sm_solve_into
+
+
+class Efc(NamedTuple):
+    """MuJoCo's constraint rows after its forward pass, as the contact stage reads them:
+    is_sparse (efc_J in CSR: rownnz, rowadr, colind; else dense, nefc x nv row-major),
+    nefc, nv; j (efc_J), type, force, aref, r (efc_R) and diag_a (efc_diagA) per row."""
+
+    is_sparse: bool
+    nefc: int
+    nv: int
+    j: np.ndarray
+    rownnz: np.ndarray
+    rowadr: np.ndarray
+    colind: np.ndarray
+    type: np.ndarray
+    force: np.ndarray
+    aref: np.ndarray
+    r: np.ndarray
+    diag_a: np.ndarray
 
 
 @nb.njit(cache=True)
-def delassus_diagonal(lt, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, fptr, fcol, fval):
-    """diag(J A^-1 J^T) of every row: banded rows from the band of B^-1 (Takahashi) with
-    the twist terms' Sherman-Morrison corrections; far rows by solves, side by side."""
+def delassus_diagonal(system, rows):
+    """diag(J A^-1 J^T) of every row (:class:`derods._numba.contact_rows.Rows`; A factored,
+    :class:`derods._numba.implicit.System`): banded rows from the band of B^-1 (Takahashi)
+    with the twist terms' Sherman-Morrison corrections; far rows by solves, side by side."""
+    lt, g, z, den, s = system.lt, system.g, system.z, system.den, system.weights[1]
+    tw_lo, tw_hi, tw_c = system.tw_lo, system.tw_hi, system.tw_c
+    col0, jw, fptr, fcol, fval = rows
     n = lt.shape[0]
     zb = inverse_band(lt, jw.shape[1])
     diag_b = rows_diag(col0, jw, zb)
@@ -45,7 +70,7 @@ def delassus_diagonal(lt, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, fptr, fcol
     out = np.empty(kb + kf)
     out[:kb] = diag_b
     if kf:
-        cols, first = far_columns(fptr, fcol, fval, n)
+        cols, first = far_columns(rows, n)
         solve_columns(lt, cols, 0, n, first)
         for i in range(len(tw_lo)):  # A^-1 = B^-1 - w z z^T for each twist term
             lo, hi = tw_lo[i], tw_hi[i]
@@ -65,7 +90,7 @@ def delassus_diagonal(lt, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, fptr, fcol
 
 
 @nb.njit(cache=True)
-def row_weights(lt, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, fptr, fcol, fval, y_border, jq, lu, piv, ratio):
+def row_weights(system, rows, y_border, jq, lu, piv, ratio):
     """The rows' weights in the metric of the implicit step, MuJoCo's impedance kept: D_i =
     1 / (ratio_i diag(J H^-1 J^T)_i), 0 where that is not positive (a row nothing can
     move); H the rods' A, bordered by m dofs (bodies holding rods, :mod:`derods.sim.coupled`;
@@ -73,15 +98,16 @@ def row_weights(lt, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, fptr, fcol, fval
     (:func:`delassus_diagonal`) plus the border's, u S^-1 u^T with u = J_q - J_f y_border;
     y_border (n, m): A^-1 H_fq; jq (k, m): the rows' entries on the border; lu, piv: the
     Schur complement S's factors (:func:`derods._numba.dense.lu_factor`); ratio (k,):
-    MuJoCo's R / diagA per row (its impedance)."""
-    diag = delassus_diagonal(lt, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, fptr, fcol, fval)
+    MuJoCo's R / diagA per row (its impedance). system: A, factored
+    (:class:`derods._numba.implicit.System`); rows: J (:class:`derods._numba.contact_rows.Rows`)."""
+    diag = delassus_diagonal(system, rows)
     k, m = jq.shape
     if m:
         u = jq.copy()
         col = np.empty(y_border.shape[0])
         for j in range(m):
             col[:] = y_border[:, j]
-            ju = apply_all(col0, jw, fptr, fcol, fval, col)
+            ju = apply_all(rows, col)
             for i in range(k):
                 u[i, j] -= ju[i]
         diag += inverse_quadratic_rows(lu, piv, u)
@@ -94,25 +120,29 @@ def row_weights(lt, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, fptr, fcol, fval
 
 
 @nb.njit(cache=True)
-def contact_step(is_sparse, nefc, nv, efc_j, rownnz, rowadr, colind, efc_type, efc_force, efc_aref, efc_r,
-                 efc_diag_a, supported_types, local_of_dof, dof_off, width, k_band, a_band, lt, g, tw_lo, tw_hi,
-                 tw_c, s, z, den, mass, m_coef, a0, a_out, force_out, max_iter, tol):
-    """MuJoCo's constraint rows on the rod dofs, re-solved in the implicit metric.
+def contact_step(efc, supported_types, local_of_dof, dof_off, width, system, a0, a_out, force_out, max_iter, tol):
+    """MuJoCo's constraint rows (``efc``, :class:`Efc`) on the rod dofs, re-solved in the
+    implicit metric (``system``, A factored: :class:`derods._numba.implicit.System`).
 
     Rods are independent in A (its band is block diagonal by rod), so the rows are
     grouped into blocks of rods they bind together (one rod, or rods a rod-rod contact
     joins) and each block is solved on its own (:func:`solve_block`): a rod no row
     touches keeps a0 and costs nothing, and a block's Newton iterations and
-    refactorizations stay its own. dof_off (n_rods + 1,): each rod's local dof range.
-    Writes a_out (n,) [m/s^2] and force_out (n,) [N]. Returns 0 if no row touches a
-    rod dof (nothing written), 1 otherwise.
+    refactorizations stay its own. supported_types: the constraint types derods solves;
+    local_of_dof (nv,): each MuJoCo dof's local dof, -1 elsewhere; dof_off (n_rods + 1,):
+    each rod's local dof range; width: a banded row's window. Writes a_out (n,) [m/s^2]
+    and force_out (n,) [N]. Returns 0 if no row touches a rod dof (nothing written), 1
+    otherwise.
     """
-    row, col, val = efc_triplets(is_sparse, nefc, nv, efc_j, rownnz, rowadr, colind)
+    nefc = efc.nefc
+    tw_lo, tw_hi = system.tw_lo, system.tw_hi
+    row, col, val = efc_triplets(efc.is_sparse, nefc, efc.nv, efc.j, efc.rownnz, efc.rowadr, efc.colind)
     n_blocks, idx, start, compact, rows, row_start, row_in_block, nz, nz_start, block_of_rod = partition(
         row, col, nefc, local_of_dof, dof_off)
     if n_blocks == 0:
         return 0
     supported = np.zeros(nefc, dtype=np.bool_)
+    efc_type = efc.type
     for r in range(nefc):
         for q in range(len(supported_types)):
             if efc_type[r] == supported_types[q]:
@@ -146,12 +176,13 @@ def contact_step(is_sparse, nefc, nv, efc_j, rownnz, rowadr, colind, efc_type, e
         for q in range(len(tw)):
             tw_lo_b[q] = compact[tw_lo[tw[q]]]
             tw_hi_b[q] = compact[tw_hi[tw[q]] - 1] + 1
+        block = System(np.ascontiguousarray(system.k_band[:, ids]), system.mass[ids], system.g[ids],
+                       system.tw_rod[tw], tw_lo_b, tw_hi_b, system.tw_c[tw],
+                       np.ascontiguousarray(system.a_band[:, ids]), system.lt[ids], system.z[ids], system.den[tw],
+                       system.weights)
         a_b = np.empty(m)
         f_b = np.empty(m)
-        solve_block(row_b, col_b, val_b, block_rows, supported[block_rows], efc_force[block_rows],
-                    efc_aref[block_rows], efc_r[block_rows], efc_diag_a[block_rows], local_b, width,
-                    np.ascontiguousarray(k_band[:, ids]), np.ascontiguousarray(a_band[:, ids]), lt[ids],
-                    g[ids], tw_lo_b, tw_hi_b, tw_c[tw], s, z[ids], den[tw], mass[ids], m_coef, a0[ids], a_b, f_b,
+        solve_block(row_b, col_b, val_b, efc, block_rows, supported, local_b, width, block, a0[ids], a_b, f_b,
                     max_iter, tol)
         for q in range(m):
             a_out[ids[q]] = a_b[q]
@@ -160,11 +191,12 @@ def contact_step(is_sparse, nefc, nv, efc_j, rownnz, rowadr, colind, efc_type, e
 
 
 @nb.njit(cache=True)
-def solve_block(row, col, val, efc_rows, supported, efc_force, efc_aref, efc_r, efc_diag_a, local_of_dof, width,
-                k_band, a_band, lt, g, tw_lo, tw_hi, tw_c, s, z, den, mass, m_coef, a0, a_out, force_out, max_iter,
-                tol):
+def solve_block(row, col, val, efc_data, efc_rows, supported, local_of_dof, width, system, a0, a_out, force_out,
+                max_iter, tol):
     """One block of rods' rows (k of them, with the nonzeros row, col, val; efc_rows (k,):
-    MuJoCo's numbers of the rows, for reference only) re-solved in the implicit metric.
+    their numbers among MuJoCo's rows ``efc_data``, :class:`Efc`; supported (nefc,): which of
+    those derods solves) re-solved in the implicit metric (``system``, the block's A,
+    factored: :class:`derods._numba.implicit.System`).
 
     1. Split the rows (:func:`split_rows`): derods solves the rows that touch only rod
        dofs and are of a supported type; the others keep MuJoCo's force (ext).
@@ -174,7 +206,9 @@ def solve_block(row, col, val, efc_rows, supported, efc_force, efc_aref, efc_r, 
     Writes a_out (m,) [m/s^2] and force_out (m,) [N] (ext + J^T lam) on the block's dofs.
     """
     n = len(a0)
-    efc, kb, col0, jw, jf, ext = split_rows(row, col, val, local_of_dof, supported, efc_force, n, width)
+    efc_aref, efc_r, efc_diag_a = efc_data.aref[efc_rows], efc_data.r[efc_rows], efc_data.diag_a[efc_rows]
+    efc, kb, col0, jw, jf, ext = split_rows(row, col, val, local_of_dof, supported[efc_rows],
+                                            efc_data.force[efc_rows], n, width)
     a = a0.copy()
     any_ext = False
     for j in range(n):
@@ -183,19 +217,19 @@ def solve_block(row, col, val, efc_rows, supported, efc_force, efc_aref, efc_r, 
             break
     if any_ext:
         e = ext.copy()
-        sm_solve_into(lt, g, tw_lo, tw_hi, tw_c, s, z, den, e)
+        sm_solve_into(system, e)
         a += e
     force_out[:] = ext
     if len(efc):
         fptr, fcol, fval = far_rows_csr(jf)
+        rows = Rows(col0, jw, fptr, fcol, fval)
         aref = np.empty(len(efc))
         r_over_diag = np.empty(len(efc))
         for i in range(len(efc)):
             aref[i] = efc_aref[efc[i]]
             r_over_diag[i] = efc_r[efc[i]] / efc_diag_a[efc[i]]
-        d = row_weights(lt, g, tw_lo, tw_hi, tw_c, s, z, den, col0, jw, fptr, fcol, fval, np.zeros((n, 0)),
-                        np.zeros((len(efc), 0)), np.zeros((0, 0)), np.zeros(0, dtype=np.int64), r_over_diag)
-        a, _, lam, _ = newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a, col0, jw, fptr, fcol,
-                              fval, aref, d, no_border(n, len(efc)), max_iter, tol)
-        force_out += transpose_apply_all(col0, jw, fptr, fcol, fval, lam, n)
+        d = row_weights(system, rows, np.zeros((n, 0)), np.zeros((len(efc), 0)), np.zeros((0, 0)),
+                        np.zeros(0, dtype=np.int64), r_over_diag)
+        a, _, lam, _ = newton(system, a, rows, aref, d, no_border(n, len(efc)), max_iter, tol)
+        force_out += transpose_apply_all(rows, lam, n)
     a_out[:] = a

@@ -31,9 +31,11 @@ def no_border(n, k):
 
 
 @nb.njit(cache=True)
-def _twist_update(g, tw_lo, tw_hi, tw_c, s, ztw, cols):
-    """Sherman-Morrison for each twist term in turn, on every column of cols (n, m):
-    x -= z_i (s c_i g_i.x) / (1 + s c_i g_i.z_i), z_i = ztw[:, i] (B^-1 g_i)."""
+def _twist_update(system, ztw, cols):
+    """Sherman-Morrison for each twist term of ``system`` (:class:`derods._numba.implicit.System`)
+    in turn, on every column of cols (n, m): x -= z_i (s c_i g_i.x) / (1 + s c_i g_i.z_i),
+    z_i = ztw[:, i] (B^-1 g_i)."""
+    g, tw_lo, tw_hi, tw_c, s = system.g, system.tw_lo, system.tw_hi, system.tw_c, system.weights[1]
     n = cols.shape[0]
     for i in range(len(tw_lo)):
         lo, hi = tw_lo[i], tw_hi[i]
@@ -51,17 +53,22 @@ def _twist_update(g, tw_lo, tw_hi, tw_c, s, ztw, cols):
 
 
 @nb.njit(cache=True)
-def newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a0, col0, jw, fptr, fcol, fval, aref, d,
-           border, max_iter, tol):
+def newton(system, a0, rows, aref, d, border, max_iter, tol):
     """Minimize 1/2 (a - a0)^T H (a - a0) + sum_i 1/2 d_i min(J_i a - aref_i, 0)^2 by
     Newton's method with an exact line search. Returns (a, a_q, lam, iterations).
 
-    H is A (band, twist terms) over the n local dofs, bordered by m dofs q
+    H is A (``system``, a factored :class:`derods._numba.implicit.System`: band, twist terms)
+    over the n local dofs, bordered by m dofs q
     (:class:`Border`: H_fq, H_qq, the rows' q entries and a_q's start; m = 0 for none):
     every row is J_i = [J_f,i, J_q,i]. Each Newton step solves with B = A's band plus the
     active banded rows, factored (and the far rows solved against it) only when the
     banded rows' active set changes; the active far rows enter as a Woodbury update of a
-    small dense system, and the border by its Schur complement on B (m more solves)."""
+    small dense system, and the border by its Schur complement on B (m more solves).
+    rows: the rows J (:class:`derods._numba.contact_rows.Rows`); aref (k,) their reference
+    accelerations, d (k,) their weights."""
+    g, tw_lo, tw_hi, mass, a_band = system.g, system.tw_lo, system.tw_hi, system.mass, system.a_band
+    s, m_coef = system.weights[1], system.weights[0]
+    col0, jw, fptr, fcol, fval = rows
     n = len(a0)
     kb = len(col0)
     kf = len(fptr) - 1
@@ -73,7 +80,7 @@ def newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a0, col0, jw,
     aq = border.a0.copy()
     am = np.zeros(n)  # H (a - a0), updated along the steps instead of recomputed
     amq = np.zeros(m)
-    jar = apply_all(col0, jw, fptr, fcol, fval, a)
+    jar = apply_all(rows, a)
     if m:
         _add_border_apply(jq, aq, jar)
     for i in range(k):
@@ -95,7 +102,7 @@ def newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a0, col0, jw,
     ztw = np.zeros((n, n_tw))
     zf = np.zeros((n, kf))
     zf_ready = False
-    far_cols, far_first = far_columns(fptr, fcol, fval, n)
+    far_cols, far_first = far_columns(rows, n)
     kd = np.empty(n)
     ad = np.empty(n)
     adq = np.empty(m)
@@ -109,7 +116,7 @@ def newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a0, col0, jw,
         for i in range(k):
             w[i] = d[i] if jar[i] < 0 else 0.0
             wjar[i] = w[i] * jar[i]
-        grad = transpose_apply_all(col0, jw, fptr, fcol, fval, wjar, n)
+        grad = transpose_apply_all(rows, wjar, n)
         gmax = 0.0
         for j in range(n):
             grad[j] += am[j]
@@ -147,7 +154,7 @@ def newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a0, col0, jw,
         for j in range(n):
             y[j, 0] = grad[j]
         solve_into(lt, y[:, 0], 0, n)
-        _twist_update(g, tw_lo, tw_hi, tw_c, s, ztw, y)
+        _twist_update(system, ztw, y)
         n_act = 0
         for r in range(kf):
             if w[kb + r] > 0:
@@ -158,7 +165,7 @@ def newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a0, col0, jw,
             if not zf_ready:
                 zf[:] = far_cols
                 solve_columns(lt, zf, 0, n, far_first)
-                _twist_update(g, tw_lo, tw_hi, tw_c, s, ztw, zf)
+                _twist_update(system, ztw, zf)
                 zf_ready = True
             act = np.empty(n_act, dtype=np.int64)
             q = 0
@@ -185,10 +192,10 @@ def newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a0, col0, jw,
         if m:
             # The border by its Schur complement: C = H_fq + J_f^T W J_q, E = H_qq + J_q^T W J_q,
             # Z = (B + far)^-1 C, S = E - C^T Z; S dq = -g_q - C^T delta, delta -= Z dq.
-            cw, ew = _border_blocks(col0, jw, fptr, fcol, fval, hfq, hqq, jq, w, n)
+            cw, ew = _border_blocks(rows, hfq, hqq, jq, w, n)
             zc_ = cw.copy()
             solve_columns(lt, zc_, 0, n, 0)
-            _twist_update(g, tw_lo, tw_hi, tw_c, s, ztw, zc_)
+            _twist_update(system, ztw, zc_)
             if n_act:
                 _woodbury_columns(zf, act, small, fptr, fcol, fval, zc_)
             for p in range(m):
@@ -208,8 +215,8 @@ def newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a0, col0, jw,
                 for c in range(m):
                     acc += zc_[j, c] * dq[c]
                 delta[j] -= acc
-        jd = apply_all(col0, jw, fptr, fcol, fval, delta)
-        k_matvec_into(k_band, g, tw_lo, tw_hi, tw_c, delta, kd)
+        jd = apply_all(rows, delta)
+        k_matvec_into(system, delta, kd)
         d_a, d_g = 0.0, 0.0
         for j in range(n):
             ad[j] = s * kd[j] + mass[j] * m_coef * delta[j]
@@ -247,7 +254,7 @@ def newton(k_band, a_band, g, tw_lo, tw_hi, tw_c, s, mass, m_coef, a0, col0, jw,
             jar[i] += t * jd[i]
         if smax <= tol * (amax + 1e-300):
             break
-    jar = apply_all(col0, jw, fptr, fcol, fval, a)
+    jar = apply_all(rows, a)
     if m:
         _add_border_apply(jq, aq, jar)
     lam = np.zeros(k)
@@ -269,8 +276,10 @@ def _add_border_apply(jq, aq, out):
 
 
 @nb.njit(cache=True)
-def _border_blocks(col0, jw, fptr, fcol, fval, hfq, hqq, jq, w, n):
-    """C = H_fq + J_f^T W J_q (n, m) and E = H_qq + J_q^T W J_q (m, m) for row weights w."""
+def _border_blocks(rows, hfq, hqq, jq, w, n):
+    """C = H_fq + J_f^T W J_q (n, m) and E = H_qq + J_q^T W J_q (m, m) for row weights w
+    (rows: :class:`derods._numba.contact_rows.Rows`)."""
+    col0, jw, fptr, fcol, fval = rows
     kb = len(col0)
     m = hqq.shape[0]
     cw = hfq.copy()

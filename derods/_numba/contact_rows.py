@@ -8,8 +8,36 @@ distant dofs ("far" rows, dense over the local dofs, or as CSR: ``fptr``, ``fcol
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba as nb
 import numpy as np
+
+
+class Rows(NamedTuple):
+    """Constraint rows over n local dofs: k_b banded rows, row i confined to the window
+    [col0_i, col0_i + W) with entries jw_i (col0 (k_b,), jw (k_b, W)), then k_f far rows
+    as CSR (fptr (k_f + 1,), fcol, fval)."""
+
+    col0: np.ndarray
+    jw: np.ndarray
+    fptr: np.ndarray
+    fcol: np.ndarray
+    fval: np.ndarray
+
+
+class Contacts(NamedTuple):
+    """MuJoCo's contacts (data.contact): count (ncon); per contact its geoms geom (ncon, 2),
+    point pos (ncon, 3) [m], frame (ncon, 9), dim, friction (ncon, 5) and first row
+    efc_address."""
+
+    count: int
+    geom: np.ndarray
+    pos: np.ndarray
+    frame: np.ndarray
+    dim: np.ndarray
+    friction: np.ndarray
+    efc_address: np.ndarray
 
 
 @nb.njit(cache=True)
@@ -232,8 +260,8 @@ def efc_triplets(is_sparse, nefc, nv, efc_j, rownnz, rowadr, colind):
 
 
 @nb.njit(cache=True)
-def correct_aref(ncon, con_geom, con_pos, con_frame, con_dim, con_friction, con_efc, geom_body, moving, body_vel,
-                 xpos, efc_type, efc_pos, efc_margin, efc_vel, efc_kbip, efc_aref, h, pyramidal, frictionless):
+def correct_aref(contacts, geom_body, moving, body_vel, xpos, efc_type, efc_pos, efc_margin, efc_vel, efc_kbip,
+                 efc_aref, h, pyramidal, frictionless):
     """Correct MuJoCo's contact rows' reference accelerations for what derods solves.
 
     1. Bodies that move without dofs (mocap bodies): MuJoCo's row i has
@@ -248,8 +276,11 @@ def correct_aref(ncon, con_geom, con_pos, con_frame, con_dim, con_friction, con_
        its velocity enters v_i only where it approaches (keeping clear of its next pose),
        never to allow the rod closer than its surface now;
        a touching one is MuJoCo's soft row without the margin, -B_i v_i - K_i I_i d.
-    Pyramidal and frictionless rows; elliptic ones are left as they are. h: step [s].
+    Pyramidal and frictionless rows; elliptic ones are left as they are. contacts: MuJoCo's
+    (:class:`Contacts`); efc_*: its rows' arrays; h: step [s].
     """
+    ncon, con_geom, con_pos, con_frame = contacts.count, contacts.geom, contacts.pos, contacts.frame
+    con_dim, con_friction, con_efc = contacts.dim, contacts.friction, contacts.efc_address
     rel = np.empty(6)
     for c in range(ncon):
         adr = con_efc[c]
@@ -333,8 +364,9 @@ def far_rows_csr(jf):
 
 
 @nb.njit(cache=True)
-def apply_all(col0, jw, fptr, fcol, fval, a):
-    """J a over the banded rows (first) and the far rows, shape (k_b + k_f,)."""
+def apply_all(rows, a):
+    """J a over the banded rows (first) and the far rows (:class:`Rows`), shape (k_b + k_f,)."""
+    col0, jw, fptr, fcol, fval = rows
     kb = len(col0)
     kf = len(fptr) - 1
     out = np.empty(kb + kf)
@@ -348,8 +380,9 @@ def apply_all(col0, jw, fptr, fcol, fval, a):
 
 
 @nb.njit(cache=True)
-def transpose_apply_all(col0, jw, fptr, fcol, fval, lam, n):
-    """J^T lam over the banded and the far rows, shape (n,)."""
+def transpose_apply_all(rows, lam, n):
+    """J^T lam over the banded and the far rows (:class:`Rows`), shape (n,)."""
+    col0, jw, fptr, fcol, fval = rows
     kb = len(col0)
     out = rows_transpose_apply(col0, jw, lam[:kb], n)
     for r in range(len(fptr) - 1):
@@ -361,8 +394,10 @@ def transpose_apply_all(col0, jw, fptr, fcol, fval, lam, n):
 
 
 @nb.njit(cache=True)
-def far_columns(fptr, fcol, fval, n):
-    """The far rows' transposes side by side, (n, k_f), and their first nonzero dof."""
+def far_columns(rows, n):
+    """The far rows' transposes (of :class:`Rows`) side by side, (n, k_f), and their first
+    nonzero dof."""
+    fptr, fcol, fval = rows.fptr, rows.fcol, rows.fval
     kf = len(fptr) - 1
     cols = np.zeros((n, kf))
     first = n

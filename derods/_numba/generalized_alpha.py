@@ -23,36 +23,37 @@ from __future__ import annotations
 
 import numba as nb
 
-from .implicit import factor_system, gather_dofs, k_matvec_into, sm_solve_into
+from .implicit import factor_system, k_matvec_into, sm_solve_into, twist_terms
 
 
 @nb.njit(cache=True)
-def alpha_step(k_band, grad, g_tw, coef, rod_tw, tw_lo, tw_hi, tw_c, free_vertex, free_body, dofs, mass, qvel,
-               xfrc_applied, gravity, h, mass_damping, stiffness_damping, am, af, beta, gamma, a_prev, offset,
-               a_band, lt, g, z, den, v, other, rhs, kv, w, qacc):
+def alpha_step(system, terms, places, params, scheme, qvel, xfrc_applied, a_prev, offset, v, other, rhs, kv, w,
+               qacc):
     """The generalized-alpha step without contact, for all rods: factor A / gamma, solve
     for the unconstrained qacc (n,) [m/s^2] (written into ``qacc``).
 
-    Arguments as :func:`derods._numba.implicit.unconstrained_step`'s, plus am, af, beta,
-    gamma (the scheme's coefficients), a_prev (n,) [m/s^2] the last step's algorithmic
-    acceleration, offset (n,) [m]
-    where grad and K were evaluated, from the start of the step (0 on the first Newton
-    iteration; then the last iterate's x_{1-af} - x0), w (n,) scratch.
-    Returns (m_coef, s), the weights of M and K in the factored matrix.
+    Arguments as :func:`derods._numba.implicit.unconstrained_step`'s, plus scheme (the
+    scheme's coefficients, :class:`derods.sim.generalized_alpha.Coefficients`: alpha_m,
+    alpha_f, beta, gamma), a_prev (n,) [m/s^2] the last step's algorithmic acceleration,
+    offset (n,) [m] where grad and K were evaluated, from the start of the step (0 on the
+    first Newton iteration; then the last iterate's x_{1-af} - x0), w (n,) scratch. The
+    weights of M and K in the factored matrix are left in ``system.weights``.
     """
+    free_vertex, free_body, dofs = places.free_vertex, places.free_body, places.dofs
+    mass, grad = system.mass, terms.grad
+    h, mass_damping, stiffness_damping, gravity = params
+    am, af, beta, gamma = scheme.alpha_m, scheme.alpha_f, scheme.beta, scheme.gamma
     n = len(dofs)
     m_coef = ((1.0 - am) + (1.0 - af) * h * gamma * mass_damping) / gamma
     s = (1.0 - af) * (h * h * beta + h * gamma * stiffness_damping) / gamma
-    for i in range(len(rod_tw)):
-        tw_c[i] = coef[rod_tw[i]]
-    gather_dofs(g_tw, free_vertex, g)
+    twist_terms(system, terms, places)
     for p in range(len(free_vertex)):
         b = free_body[p]
         for a in range(3):
             k = 3 * p + a
             v[k] = qvel[dofs[k]]
             other[k] = mass[k] * gravity[a] + xfrc_applied[b, a]
-    factor_system(k_band, mass, m_coef, s, a_band, lt, g, tw_lo, tw_hi, tw_c, z, den)
+    factor_system(system, m_coef, s)
     # rhs = F - grad - am M a0 - a_m M v_f - K (b v_f + (1-af) dx - offset), with the predictors
     # v_f = (1-af)(v0 + h (1-gamma) a0) + af v0 and dx = h v0 + h^2 (1/2 - beta) a0.
     for p in range(len(free_vertex)):
@@ -63,13 +64,12 @@ def alpha_step(k_band, grad, g_tw, coef, rod_tw, tw_lo, tw_hi, tw_c, free_vertex
             dx = h * v[k] + h * h * (0.5 - beta) * a_prev[k]
             w[k] = stiffness_damping * vf + (1.0 - af) * dx - offset[k]
             rhs[k] = other[k] - grad[vtx, a] - mass[k] * (am * a_prev[k] + mass_damping * vf)
-    k_matvec_into(k_band, g, tw_lo, tw_hi, tw_c, w, kv)
+    k_matvec_into(system, w, kv)
     for k in range(n):
         qacc[k] = rhs[k] - kv[k]
-    sm_solve_into(lt, g, tw_lo, tw_hi, tw_c, s, z, den, qacc)
+    sm_solve_into(system, qacc)
     for k in range(n):
         qacc[k] += (1.0 - gamma) * a_prev[k]
-    return m_coef, s
 
 
 @nb.njit(cache=True)

@@ -10,15 +10,70 @@ confines to the same range.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba as nb
+import numpy as np
 
 from .banded import cholesky_into, matvec_into, solve_into
 
 
+class System(NamedTuple):
+    """The implicit step's matrix A = m_coef M + s (K_band + sum_i c_i g_i g_i^T) over n
+    dofs with T twist terms, and its factor (:class:`derods.sim.implicit.ImplicitSystem`
+    holds one).
+
+    k_band (rows, n): the band of K [N/m]; mass (n,) [kg]; g (n,): the twist directions of
+    all rods laid end to end [1/m]; tw_rod, tw_lo, tw_hi (T,): each twist term's rod and dof
+    range; tw_c (T,): its stiffness c [N m]. Written by :func:`factor_system`: a_band (A's
+    band), lt (its Cholesky factor, column by column, shape (n, rows), see
+    :mod:`derods._numba.banded`), z (n,) = B^-1 g per range, den (T,) = 1 + s c g.z, and
+    weights (2,) = (m_coef, s), the weights of M and K that A was factored with.
+    """
+
+    k_band: np.ndarray
+    mass: np.ndarray
+    g: np.ndarray
+    tw_rod: np.ndarray
+    tw_lo: np.ndarray
+    tw_hi: np.ndarray
+    tw_c: np.ndarray
+    a_band: np.ndarray
+    lt: np.ndarray
+    z: np.ndarray
+    den: np.ndarray
+    weights: np.ndarray
+
+
+class Places(NamedTuple):
+    """The rods' free vertices in the solve order (place p owns local dofs 3 p .. 3 p + 2):
+    free_vertex, free_body (n / 3,), each place's vertex and MuJoCo body; dofs (n,), each
+    local dof's MuJoCo dof (see :class:`derods.sim.layout.Layout`)."""
+
+    free_vertex: np.ndarray
+    free_body: np.ndarray
+    dofs: np.ndarray
+
+
+class StepParams(NamedTuple):
+    """A step's frozen settings: its size h [s], the Rayleigh damping's mass_damping a_m
+    [1/s] and stiffness_damping b [s], and gravity (3,) [m/s^2]."""
+
+    h: float
+    mass_damping: float
+    stiffness_damping: float
+    gravity: np.ndarray
+
+
 @nb.njit(cache=True)
-def factor_system(k_band, mass, m_coef, s, a_band, lt, g, tw_lo, tw_hi, tw_c, z, den):
-    """a_band = s k_band + diag(m_coef mass); lt its Cholesky factor (n, rows); for each twist term
-    i: z[lo_i:hi_i] = B^-1 g_i (block-local), den_i = 1 + s c_i g_i.z_i."""
+def factor_system(system, m_coef, s):
+    """A's band a_band = s k_band + diag(m_coef mass); lt its Cholesky factor (n, rows); for
+    each twist term i: z[lo_i:hi_i] = B^-1 g_i (block-local), den_i = 1 + s c_i g_i.z_i;
+    weights = (m_coef, s). The arrays are ``system``'s (:class:`System`)."""
+    k_band, mass, a_band, lt, g, z = system.k_band, system.mass, system.a_band, system.lt, system.g, system.z
+    tw_lo, tw_hi, tw_c, den = system.tw_lo, system.tw_hi, system.tw_c, system.den
+    system.weights[0] = m_coef
+    system.weights[1] = s
     rows, n = k_band.shape
     for d in range(rows):
         for j in range(n):
@@ -38,9 +93,12 @@ def factor_system(k_band, mass, m_coef, s, a_band, lt, g, tw_lo, tw_hi, tw_c, z,
 
 
 @nb.njit(cache=True)
-def sm_solve_into(lt, g, tw_lo, tw_hi, tw_c, s, z, den, x):
-    """x <- A^-1 x in place: a banded solve, then one Sherman-Morrison update per twist
-    term within its rod's range (A's band is block diagonal)."""
+def sm_solve_into(system, x):
+    """x <- A^-1 x in place (A factored, ``system`` a :class:`System`): a banded solve,
+    then one Sherman-Morrison update per twist term within its rod's range (A's band is
+    block diagonal)."""
+    lt, g, z, den, s = system.lt, system.g, system.z, system.den, system.weights[1]
+    tw_lo, tw_hi, tw_c = system.tw_lo, system.tw_hi, system.tw_c
     n = x.shape[0]
     solve_into(lt, x, 0, n)
     for i in range(len(tw_lo)):
@@ -54,9 +112,10 @@ def sm_solve_into(lt, g, tw_lo, tw_hi, tw_c, s, z, den, x):
 
 
 @nb.njit(cache=True)
-def k_matvec_into(k_band, g, tw_lo, tw_hi, tw_c, w, y):
-    """y = K w = K_band w + sum_i c_i g_i (g_i . w)."""
-    matvec_into(k_band, w, y)
+def k_matvec_into(system, w, y):
+    """y = K w = K_band w + sum_i c_i g_i (g_i . w) (``system`` a :class:`System`)."""
+    g, tw_lo, tw_hi, tw_c = system.g, system.tw_lo, system.tw_hi, system.tw_c
+    matvec_into(system.k_band, w, y)
     for i in range(len(tw_lo)):
         lo, hi = tw_lo[i], tw_hi[i]
         gw = 0.0
@@ -76,25 +135,34 @@ def gather_dofs(per_vertex, free_vertex, out):
 
 
 @nb.njit(cache=True)
-def unconstrained_step(k_band, grad, g_tw, coef, rod_tw, tw_lo, tw_hi, tw_c, free_vertex, free_body, dofs,
-                       mass, qvel, xfrc_applied, gravity, h, mass_damping, stiffness_damping, a_band, lt, g,
-                       z, den, v, other, rhs, kv, a0):
+def twist_terms(system, terms, places):
+    """The rods' twist terms into ``system`` (:class:`System`): each term's c from its rod's
+    ``terms.coef`` and the directions g from ``terms.g_tw`` on the free dofs
+    (:class:`derods.step.Terms`, :class:`Places`)."""
+    tw_rod, tw_c, coef = system.tw_rod, system.tw_c, terms.coef
+    for i in range(len(tw_rod)):
+        tw_c[i] = coef[tw_rod[i]]
+    gather_dofs(terms.g_tw, places.free_vertex, system.g)
+
+
+@nb.njit(cache=True)
+def unconstrained_step(system, terms, places, params, qvel, xfrc_applied, v, other, rhs, kv, a0):
     """The implicit step without contact, for all rods: assemble and factor A, solve
     A a0 = F - a_m M v - (b + h) K v with F = -grad + gravity + the user's xfrc_applied.
 
-    k_band (rows, n) [N/m]: the elastic band over the free dofs. grad, g_tw (n_vertices, 3);
-    coef (n_rods,); rod_tw (n_tw,): the rod of each twist term. free_vertex, free_body
-    (n / 3,): vertex and MuJoCo body of each place; dofs (n,): MuJoCo dofs; mass (n,) [kg];
-    qvel, xfrc_applied: MuJoCo's arrays; gravity (3,) [m/s^2]. Out: a_band, lt, g, z,
-    den (the factored system), v (n,) [m/s], other (n,) [N] (gravity + user force),
-    a0 (n,) [m/s^2]; rhs, kv are scratch.
+    system (:class:`System`): k_band (rows, n) [N/m] the elastic band over the free dofs,
+    filled and factored here. terms (:class:`derods.step.Terms`): grad, g_tw (n_vertices, 3),
+    coef (n_rods,). places (:class:`Places`); params (:class:`StepParams`); qvel,
+    xfrc_applied: MuJoCo's arrays. Out: v (n,) [m/s], other (n,) [N] (gravity + user
+    force), a0 (n,) [m/s^2]; rhs, kv are scratch.
     """
+    h, mass_damping, stiffness_damping, gravity = params
+    free_vertex, free_body, dofs = places.free_vertex, places.free_body, places.dofs
+    mass, grad = system.mass, terms.grad
     n = len(dofs)
     s = h * h + h * stiffness_damping
-    for i in range(len(rod_tw)):
-        tw_c[i] = coef[rod_tw[i]]
-    gather_dofs(g_tw, free_vertex, g)
-    factor_system(k_band, mass, 1.0 + h * mass_damping, s, a_band, lt, g, tw_lo, tw_hi, tw_c, z, den)
+    twist_terms(system, terms, places)
+    factor_system(system, 1.0 + h * mass_damping, s)
     for p in range(len(free_vertex)):
         b = free_body[p]
         vtx = free_vertex[p]
@@ -103,27 +171,27 @@ def unconstrained_step(k_band, grad, g_tw, coef, rod_tw, tw_lo, tw_hi, tw_c, fre
             v[k] = qvel[dofs[k]]
             other[k] = mass[k] * gravity[a] + xfrc_applied[b, a]
             rhs[k] = other[k] - grad[vtx, a] - mass_damping * mass[k] * v[k]
-    k_matvec_into(k_band, g, tw_lo, tw_hi, tw_c, v, kv)
+    k_matvec_into(system, v, kv)
     for k in range(n):
         rhs[k] -= (stiffness_damping + h) * kv[k]
         a0[k] = rhs[k]
-    sm_solve_into(lt, g, tw_lo, tw_hi, tw_c, s, z, den, a0)
+    sm_solve_into(system, a0)
 
 
 @nb.njit(cache=True)
-def explicit_force(k_band, grad, g_tw, coef, rod_tw, tw_lo, tw_hi, tw_c, free_vertex, dofs, mass, qvel,
-                   mass_damping, stiffness_damping, g, v, kv, qfrc_applied):
+def explicit_force(system, terms, places, params, qvel, v, kv, qfrc_applied):
     """The explicit step's force on the rod dofs, -grad - a_m M v - b K v [N], written into
-    MuJoCo's qfrc_applied."""
+    MuJoCo's qfrc_applied (K from ``system``'s k_band and ``terms``' twist terms; the
+    damping from ``params``, :class:`StepParams`)."""
+    mass_damping, stiffness_damping = params.mass_damping, params.stiffness_damping
+    free_vertex, dofs, mass, grad = places.free_vertex, places.dofs, system.mass, terms.grad
     for p in range(len(free_vertex)):
         for a in range(3):
             k = 3 * p + a
             v[k] = qvel[dofs[k]]
     if stiffness_damping:
-        for i in range(len(rod_tw)):
-            tw_c[i] = coef[rod_tw[i]]
-        gather_dofs(g_tw, free_vertex, g)
-        k_matvec_into(k_band, g, tw_lo, tw_hi, tw_c, v, kv)
+        twist_terms(system, terms, places)
+        k_matvec_into(system, v, kv)
     for p in range(len(free_vertex)):
         vtx = free_vertex[p]
         for a in range(3):

@@ -16,6 +16,7 @@ frame leaves: more damping in the implicit step, never less stability).
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
@@ -34,6 +35,28 @@ SLACK = 1e-14
 MAX_ITER = 50
 
 
+class FixedCenterline(NamedTuple):
+    """A rod's twist problem at a fixed centerline, E(theta) in the module's formula: its
+    reference directors u and tangents t (n_edges, 3); per joint, the curvature binormal kb
+    (n_joints, 3), the reference twist ref_twist [rad], the vertex length vlen [m], the
+    natural twist mbar [rad] and the rest material curvatures wbar (n_joints, 2, 2); the
+    principal bending stiffnesses b1, b2 and the twist stiffness beta [N m^2]; closed; a
+    ring's imposed twist at its seam joint, offset [rad] (0 for an open rod)."""
+
+    u: np.ndarray
+    t: np.ndarray
+    kb: np.ndarray
+    ref_twist: np.ndarray
+    vlen: np.ndarray
+    mbar: np.ndarray
+    wbar: np.ndarray
+    b1: float
+    b2: float
+    beta: float
+    closed: bool
+    offset: float
+
+
 @nb.njit(cache=True, inline="always")
 def _omega(kb0, kb1, kb2, u, t, theta, e):
     """Material curvatures (kb . m2, -kb . m1) of edge e's frame at angle theta[e]."""
@@ -47,10 +70,12 @@ def _omega(kb0, kb1, kb2, u, t, theta, e):
 
 
 @nb.njit(cache=True)
-def _theta_energy(theta, u, t, kbs, ref, vlen, mbar, wbar, b1, b2, beta, closed, offset, order, g, hd, ho):
-    """E(theta) at fixed centerline, and (order >= 1) dE/dtheta into g (n_edges,),
-    (order 2) the theta Hessian: diagonal hd (n_edges,), joint k's coupling of its two
-    edges ho (n_joints,)."""
+def _theta_energy(rod, theta, order, g, hd, ho):
+    """E(theta) of ``rod`` (:class:`FixedCenterline`), and (order >= 1) dE/dtheta into g
+    (n_edges,), (order 2) the theta Hessian: diagonal hd (n_edges,), joint k's coupling of
+    its two edges ho (n_joints,)."""
+    u, t, kbs, ref, vlen, mbar, wbar = rod.u, rod.t, rod.kb, rod.ref_twist, rod.vlen, rod.mbar, rod.wbar
+    b1, b2, beta, closed, offset = rod.b1, rod.b2, rod.beta, rod.closed, rod.offset
     ne = t.shape[0]
     nj = kbs.shape[0]
     nv = ne if closed else ne + 1
@@ -90,13 +115,15 @@ def _theta_energy(theta, u, t, kbs, ref, vlen, mbar, wbar, b1, b2, beta, closed,
 
 
 @nb.njit(cache=True)
-def _newton_theta(theta, u, t, kbs, ref, vlen, mbar, wbar, b1, b2, beta, closed, offset, lo, hi, pos):
-    """Minimize E over the free angles theta[lo:hi] (a ring: all). Edge e is unknown
-    pos[e] - lo of the system: an open rod in order (a tridiagonal Hessian), a ring in its
-    zig-zag order (its cyclic Hessian is then banded, two sub-diagonals). Levenberg-Marquardt
-    damping where the Hessian is not positive definite, backtracking on the energy."""
-    ne = t.shape[0]
-    nj = kbs.shape[0]
+def _newton_theta(rod, theta, lo, hi, pos):
+    """Minimize E of ``rod`` (:class:`FixedCenterline`) over the free angles theta[lo:hi]
+    (a ring: all). Edge e is unknown pos[e] - lo of the system: an open rod in order (a
+    tridiagonal Hessian), a ring in its zig-zag order (its cyclic Hessian is then banded, two
+    sub-diagonals). Levenberg-Marquardt damping where the Hessian is not positive definite,
+    backtracking on the energy."""
+    closed = rod.closed
+    ne = rod.t.shape[0]
+    nj = rod.kb.shape[0]
     m = hi - lo
     g = np.empty(ne)
     hd = np.empty(ne)
@@ -108,7 +135,7 @@ def _newton_theta(theta, u, t, kbs, ref, vlen, mbar, wbar, b1, b2, beta, closed,
     lt = np.zeros((m, rows))
     mu = 0.0
     for _ in range(MAX_ITER):
-        e0 = _theta_energy(theta, u, t, kbs, ref, vlen, mbar, wbar, b1, b2, beta, closed, offset, 2, g, hd, ho)
+        e0 = _theta_energy(rod, theta, 2, g, hd, ho)
         scale = 0.0
         gmax = 0.0
         for e in range(lo, hi):
@@ -143,8 +170,7 @@ def _newton_theta(theta, u, t, kbs, ref, vlen, mbar, wbar, b1, b2, beta, closed,
             trial[:] = theta
             for e in range(lo, hi):
                 trial[e] += s * step[pos[e] - lo]
-            e1 = _theta_energy(trial, u, t, kbs, ref, vlen, mbar, wbar, b1, b2, beta, closed, offset, 0, g, hd,
-                               ho)
+            e1 = _theta_energy(rod, trial, 0, g, hd, ho)
             if e1 <= e0 + 1e-4 * s * gs + SLACK * abs(e0) or s < 1e-8:
                 break
             s *= 0.5
@@ -155,13 +181,22 @@ def _newton_theta(theta, u, t, kbs, ref, vlen, mbar, wbar, b1, b2, beta, closed,
 
 
 @nb.njit(cache=True)
-def material_rod(t, u, theta, le, vlen, mbar, wbar, b1, b2, beta, closed, fix_first, fix_last, theta_first,
-                 theta_last, total_twist, edge_pos, place, grad, ab, kbs, ref, ja, jb, h6, blocks):
-    """Bending in material curvatures and the twist (solved by Newton) of one rod, after
-    :func:`derods._numba.rod_geometry.edges`. Adds to grad [N] and the band [N/m]; writes
-    theta [rad]. edge_pos: each edge's place in the twist system (identity for an open
-    rod, the zig-zag order for a ring). Returns (energy [J], dE/dtheta of the first and
-    last edge [N m]: the moments held ends resist)."""
+def material_rod(rods, i, t, u, theta, theta_first, theta_last, place, grad, ab, work):
+    """Bending in material curvatures and the twist (solved by Newton) of rod i of ``rods``
+    (:class:`derods.step.RodSet`), after :func:`derods._numba.rod_geometry.edges`: t, u,
+    theta, place, grad are the rod's slices, theta_first, theta_last [rad] its held end
+    angles this step, ab its band, work a :class:`derods._numba.rod_geometry.Scratch`
+    (edge_len filled by edges). Adds to grad [N] and the band [N/m]; writes theta [rad].
+    The rod's edge_pos: each edge's place in the twist system (identity for an open rod,
+    the zig-zag order for a ring). Returns (energy [J], dE/dtheta of the first and last
+    edge [N m]: the moments held ends resist)."""
+    j0, j1, e0 = rods.j_off[i], rods.j_off[i + 1], rods.e_off[i]
+    vlen, mbar, wbar = rods.vlen[j0:j1], rods.mbar[j0:j1], rods.wbar[j0:j1]
+    b1, b2, beta, closed = rods.bend[i, 0], rods.bend[i, 1], rods.beta[i], rods.closed[i]
+    fix_first, fix_last, total_twist = rods.fix_first[i], rods.fix_last[i], rods.total_twist[i]
+    edge_pos = rods.edge_pos[e0:rods.e_off[i + 1]]
+    le, kbs, ref = work.edge_len, work.kb, work.ref_twist
+    ja, jb, h6, blocks = work.jac_a, work.jac_b, work.h6, work.blocks
     nv = grad.shape[0]
     ne = nv if closed else nv - 1
     nj = nv if closed else nv - 2
@@ -179,10 +214,11 @@ def material_rod(t, u, theta, le, vlen, mbar, wbar, b1, b2, beta, closed, fix_fi
         theta[ne - 1] = theta_last
         hi = ne - 1
     offset = total_twist if closed else 0.0
+    rod = FixedCenterline(u, t, kbs, ref, vlen, mbar, wbar, b1, b2, beta, closed, offset)
     if hi > lo:
-        _newton_theta(theta, u, t, kbs, ref, vlen, mbar, wbar, b1, b2, beta, closed, offset, lo, hi, edge_pos)
+        _newton_theta(rod, theta, lo, hi, edge_pos)
     g = np.empty(ne)
-    _theta_energy(theta, u, t, kbs, ref, vlen, mbar, wbar, b1, b2, beta, closed, offset, 1, g, g, g[:0])
+    _theta_energy(rod, theta, 1, g, g, g[:0])
     # Gradient in x and the Gauss-Newton Hessian at the solved angles.
     energy = 0.0
     n_sc = np.empty((2, 2, 3))

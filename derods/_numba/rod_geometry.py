@@ -10,11 +10,27 @@ vertices' places in the solve order (``place``, -1 for a held vertex).
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
 
 from ..geometry import CHI_MIN
+
+
+class Scratch(NamedTuple):
+    """Work arrays of a rod's joints, sized for the longest rod of a set (n vertices):
+    edge_len (n,) [m], the edges' lengths; ref_twist (n,) [rad], the joints' reference
+    twists; kb (n, 3), their curvature binormals; jac_a, jac_b (3, 3), a joint's Jacobians
+    of kb; h6 (6, 6), its Hessian; blocks (6, 3, 3), that Hessian's blocks per vertex pair."""
+
+    edge_len: np.ndarray
+    ref_twist: np.ndarray
+    kb: np.ndarray
+    jac_a: np.ndarray
+    jac_b: np.ndarray
+    h6: np.ndarray
+    blocks: np.ndarray
 
 
 @nb.njit(cache=True, inline="always")

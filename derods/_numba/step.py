@@ -30,23 +30,31 @@ import numba as nb
 import numpy as np
 
 from .material import material_rod
-from .rod_geometry import add_joint_hessian, curvature_binormal, edges, joint_stencil, reference_twist, turn_clamps
+from .rod_geometry import Scratch, add_joint_hessian, curvature_binormal, edges, joint_stencil, reference_twist
+from .rod_geometry import turn_clamps
 
 
 @nb.njit(cache=True)
-def isotropic_joints(t, u, theta, le, vlen, mbar, alpha, beta, closed, has_twist, clamped, anchor_last,
-                     theta_first, theta_last, total_twist, place, grad, ab, g_tw, ref, ja, jb, h6, blocks):
-    """Bending and the closed-form twist of an isotropic, naturally straight rod, after
-    :func:`derods._numba.rod_geometry.edges`. Adds to grad [N] and the band [N/m]; writes
-    g_tw [1/m] (d total reference twist / dx) and theta [rad]. Returns (energy [J],
-    twisting moment lam [N m], twist stiffness c [N m])."""
+def isotropic_joints(rods, i, t, u, theta, theta_first, theta_last, place, grad, ab, g_tw, work):
+    """Bending and the closed-form twist of rod i of ``rods`` (:class:`derods.step.RodSet`),
+    isotropic and naturally straight, after :func:`derods._numba.rod_geometry.edges`: t, u,
+    theta, place, grad, g_tw are the rod's slices, theta_first, theta_last [rad] its held
+    end angles this step, ab its band, work a :class:`derods._numba.rod_geometry.Scratch`
+    (edge_len filled by edges). Adds to grad [N] and the band [N/m]; writes g_tw [1/m]
+    (d total reference twist / dx) and theta [rad]. Returns (energy [J], twisting moment
+    lam [N m], twist stiffness c [N m])."""
+    j0, j1 = rods.j_off[i], rods.j_off[i + 1]
+    vlen, mbar = rods.vlen[j0:j1], rods.mbar[j0:j1]
+    alpha, beta, closed, has_twist = rods.alpha[i], rods.beta[i], rods.closed[i], rods.has_twist[i]
+    clamped, anchor_last, total_twist = rods.clamped[i], rods.anchor_last[i], rods.total_twist[i]
+    le, ref, ja, jb, h6, blocks = work.edge_len, work.ref_twist, work.jac_a, work.jac_b, work.h6, work.blocks
     nv = grad.shape[0]
     ne = nv if closed else nv - 1
     nj = nv if closed else nv - 2
     energy = 0.0
-    for i in range(nv):
+    for p in range(nv):
         for a in range(3):
-            g_tw[i, a] = 0.0
+            g_tw[p, a] = 0.0
     for k in range(nj):
         ea, eb, va, vm, vn = joint_stencil(k, closed, ne, nv)
         kb0, kb1, kb2, chi = curvature_binormal(t, le, ea, eb, ja, jb)
@@ -95,9 +103,9 @@ def isotropic_joints(t, u, theta, le, vlen, mbar, alpha, beta, closed, has_twist
         for k in range(1 if closed else 0, nj):
             eb = k if closed else k + 1
             theta[eb] = theta[eb - 1] + 0.5 * lam * vlen[k] / beta + mbar[k] - ref[k]
-        for i in range(nv):
+        for p in range(nv):
             for a in range(3):
-                grad[i, a] += lam * g_tw[i, a]
+                grad[p, a] += lam * g_tw[p, a]
     elif anchor_last:
         theta[ne - 1] = theta_last
         for k in range(nj - 1, -1, -1):
@@ -111,15 +119,13 @@ def isotropic_joints(t, u, theta, le, vlen, mbar, alpha, beta, closed, has_twist
 
 
 @nb.njit(cache=True)
-def rods_step(x, v_off, e_off, j_off, rest_len, vlen, mbar, wbar, edge_pos, ks, alpha, bend, beta, kind, closed,
-              has_twist, clamped, anchor_last, fix_first, fix_last, theta_first, theta_last, total_twist, clamp_body,
-              clamp_dir, theta_end, xmat, place, band_of_rod, u, t, theta, grad, bands, g_tw, energy, lam, coef,
-              end_moment, strain):
-    """Every rod of a set, laid end to end (see :class:`derods.step.RodSet` for the
-    per-rod arguments). In: positions x (n_vertices, 3) [m]; the previous frames u, t
-    (n_edges, 3) and twist angles theta (n_edges,), updated in place; theta_end (n_rods, 2)
-    [rad], the unwrapped angles of clamps on moving bodies, updated in place; xmat
-    (n_bodies, 9), MuJoCo's body orientations. Out: grad (n_vertices, 3) [N]; bands
+def rods_step(rods, ends, frames, x, xmat, place, bands, band_of_rod, out):
+    """Every rod of a set, laid end to end: rods (:class:`derods.step.RodSet`), their clamps
+    on moving bodies ends (:class:`derods.step.EndBodies`), their state frames
+    (:class:`derods.step.Frames`: u, t, theta (n_edges, ...) transported and solved in
+    place; theta_end (n_rods, 2) [rad], the unwrapped angles of clamps on moving bodies,
+    updated). In: positions x (n_vertices, 3) [m]; xmat (n_bodies, 9), MuJoCo's body
+    orientations. Out (:class:`derods.step.Terms`): grad (n_vertices, 3) [N]; bands
     (n_bands, rows, n_dofs), lower bands of the PSD Hessian [N/m], zeroed here first: rod
     i adds to bands[band_of_rod[i]] at its vertices' places ``place`` (n_vertices,) (one
     band for all rods in a world; one per rod for :meth:`derods.Rod.step_terms`); g_tw
@@ -127,44 +133,43 @@ def rods_step(x, v_off, e_off, j_off, rest_len, vlen, mbar, wbar, edge_pos, ks, 
     energy, lam, coef, strain per rod; end_moment (n_rods, 2) [N m], dE/dtheta of each
     rod's first and last edge. kind: 1 isotropic and naturally straight, 2 anisotropic or
     naturally curved (Newton twist solve). Returns the first rod whose largest |strain| is
-    not finite or exceeds ``strain`` on entry, else -1 (strain (n_rods,): limit in, value
-    out)."""
+    not finite or exceeds ``out.strain`` on entry, else -1 (out.strain (n_rods,): limit
+    in, value out)."""
+    # The bundles' fields read once: a field read in the loop costs a reference count per rod.
+    v_off, e_off, rest_len, ks, kind, closed = rods.v_off, rods.e_off, rods.rest_len, rods.ks, rods.kind, rods.closed
+    clamped, theta_first, theta_last = rods.clamped, rods.theta_first, rods.theta_last
+    u, t, theta, theta_end = frames.u, frames.t, frames.theta, frames.theta_end
+    clamp_body, clamp_dir = ends.body, ends.director
+    grad, g_tw, strain, energy, lam, coef, end_moment = out.grad, out.g_tw, out.strain, out.energy, out.lam, out.coef, \
+        out.end_moment
     n_rods = len(v_off) - 1
     max_nv = 0
     for i in range(n_rods):
         max_nv = max(max_nv, v_off[i + 1] - v_off[i])
-    ref = np.empty(max_nv)
-    le = np.empty(max_nv)
-    kbs = np.empty((max_nv, 3))
-    ja = np.empty((3, 3))
-    jb = np.empty((3, 3))
-    h6 = np.empty((6, 6))
-    blocks = np.empty((6, 3, 3))
+    work = Scratch(np.empty(max_nv), np.empty(max_nv), np.empty((max_nv, 3)), np.empty((3, 3)), np.empty((3, 3)),
+                   np.empty((6, 6)), np.empty((6, 3, 3)))
+    edge_len, blocks = work.edge_len, work.blocks
     bands[:] = 0.0
     first_bad = -1
     for i in range(n_rods):
         v0, v1 = v_off[i], v_off[i + 1]
         e0, e1 = e_off[i], e_off[i + 1]
-        j0, j1 = j_off[i], j_off[i + 1]
         ab = bands[band_of_rod[i]]
         xi, ui, ti, thi = x[v0:v1], u[e0:e1], t[e0:e1], theta[e0:e1]
-        e_s, st = edges(xi, ui, ti, rest_len[e0:e1], ks[i], closed[i], place[v0:v1], grad[v0:v1], ab, le, blocks)
+        e_s, st = edges(xi, ui, ti, rest_len[e0:e1], ks[i], closed[i], place[v0:v1], grad[v0:v1], ab, edge_len,
+                        blocks)
         th_first, th_last = turn_clamps(ui, ti, e1 - e0, clamp_body[i], clamp_dir[i], theta_end[i], xmat,
                                         theta_first[i], theta_last[i])
         if kind[i] == 1:
-            e_b, lm, cf = isotropic_joints(ti, ui, thi, le, vlen[j0:j1], mbar[j0:j1], alpha[i], beta[i], closed[i],
-                                           has_twist[i], clamped[i], anchor_last[i], th_first, th_last,
-                                           total_twist[i], place[v0:v1], grad[v0:v1], ab, g_tw[v0:v1], ref, ja, jb,
-                                           h6, blocks)
+            e_b, lm, cf = isotropic_joints(rods, i, ti, ui, thi, th_first, th_last, place[v0:v1], grad[v0:v1], ab,
+                                           g_tw[v0:v1], work)
             held = clamped[i] and not closed[i]
             end_moment[i, 0] = -lm if held else 0.0
             end_moment[i, 1] = lm if held else 0.0
         else:
             g_tw[v0:v1] = 0.0
-            e_b, m_first, m_last = material_rod(ti, ui, thi, le, vlen[j0:j1], mbar[j0:j1], wbar[j0:j1], bend[i, 0],
-                                                bend[i, 1], beta[i], closed[i], fix_first[i], fix_last[i], th_first,
-                                                th_last, total_twist[i], edge_pos[e0:e1], place[v0:v1], grad[v0:v1],
-                                                ab, kbs, ref, ja, jb, h6, blocks)
+            e_b, m_first, m_last = material_rod(rods, i, ti, ui, thi, th_first, th_last, place[v0:v1], grad[v0:v1],
+                                                ab, work)
             lm, cf = 0.0, 0.0
             end_moment[i, 0] = m_first
             end_moment[i, 1] = m_last

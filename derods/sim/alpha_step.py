@@ -12,6 +12,7 @@ import mujoco
 import numpy as np
 
 from .._numba import generalized_alpha as _ga
+from .._numba.calls import Bound
 from .._numba.projection import limit_strain, predict_into
 from ..step import evaluate
 from . import generalized_alpha as ga
@@ -48,7 +49,7 @@ class GeneralizedAlpha(Implicit):
     def __init__(self, *args, rho_inf: float = ga.RHO_INF, **kwargs):
         super().__init__(*args, **kwargs)
         self.coefficients = ga.Coefficients.from_rho_inf(rho_inf)
-        self._euler_weights = (self.system.m_coef, self.system.s)  # backward Euler's M and K weights
+        self._alpha_step = Bound(_ga.alpha_step)  # the same bundles every step
         self.a_prev = np.zeros(self.layout.n)
         self._w = np.zeros(self.layout.n)
         self._zero = np.zeros(self.layout.n)
@@ -145,17 +146,13 @@ class GeneralizedAlpha(Implicit):
     def _euler(self) -> None:
         """Make this step backward Euler's: forces at x0, the implicit mode's solve."""
         self.forces(self.x)
-        Implicit._unconstrained(self, self.layout, self.terms, self.system)
-        self.system.m_coef, self.system.s = self._euler_weights
+        Implicit._unconstrained(self, self.layout, self.terms, self.system)  # factored with Euler's weights
         self.euler_step = True
 
     def _solve(self, lay, t, s, c) -> None:
         """One linearized solve about x0 + offset, into self.a0 (the unconstrained qacc)."""
-        s.m_coef, s.s = _ga.alpha_step(
-            t.band, t.grad, t.g_tw, t.coef, self.rod_tw, s.tw_lo, s.tw_hi, s.tw_c, lay.free_vertex, lay.free_body,
-            lay.dofs, lay.mass, self.qvel, self.xfrc_applied, self.gravity, self.h, self.mass_damping,
-            self.stiffness_damping, c.alpha_m, c.alpha_f, c.beta, c.gamma, self.a_prev, self._offset,
-            s.a_band, s.lt, s.g, s.z, s.den, self.v, self.other, self._rhs, self._kv, self._w, self.a0)
+        self._alpha_step(s.arrays, t, lay.places, self.params, c, self.qvel, self.xfrc_applied, self.a_prev,
+                         self._offset, self.v, self.other, self._rhs, self._kv, self._w, self.a0)
 
     def _contact(self, d: mujoco.MjData) -> np.ndarray | None:
         a = self.contact(d, self.system, self.a0)

@@ -43,7 +43,8 @@ import numpy as np
 
 from .._numba import contact as _k
 from .._numba.banded import cholesky_into
-from .._numba.contact_rows import correct_aref, efc_triplets
+from .._numba.calls import Bound
+from .._numba.contact_rows import Contacts, correct_aref, efc_triplets
 from ..stencil import XX_BANDWIDTH
 from .implicit import ImplicitSystem
 from .trees import TreeDynamics, tree_dofs
@@ -97,6 +98,7 @@ class ContactStep:
         self._dof_tree = np.where(joins[dof_tree], dof_tree, -1)
         self.bodies = bool(np.any(self._dof_tree >= 0))
         self._dynamics = TreeDynamics(model) if self.bodies else None
+        self._contact_step = Bound(_k.contact_step)
 
     def __call__(self, data: mujoco.MjData, system: ImplicitSystem, a0: np.ndarray) -> np.ndarray | None:
         """The acceleration [m/s^2] (n,) with contacts, or None if no row touches a rod."""
@@ -106,9 +108,7 @@ class ContactStep:
             if len(trees):
                 touched = self._with_trees(data, system, a0, trees)
             else:
-                touched = self._solve(data, system, self.local_of_dof, self.dof_off, system.k_band,
-                                      system.a_band, system.lt, system.g, system.z, system.mass, a0, self.a,
-                                      self.force)
+                touched = self._solve(data, system.arrays, self.local_of_dof, self.dof_off, a0, self.a, self.force)
             if touched:
                 self._force_is_zero = False
                 return self.a
@@ -117,15 +117,20 @@ class ContactStep:
             self._force_is_zero = True
         return None
 
-    def _solve(self, data, system, local_of_dof, dof_off, k_band, a_band, lt, g, z, mass, a0, a_out,
-               force_out) -> int:
+    def _solve(self, data, system, local_of_dof, dof_off, a0, a_out, force_out) -> int:
         """The compiled contact stage over the given dofs (the rods', or the rods' and some
-        trees': arrays of that length), into a_out and force_out; 1 if a row touched them."""
-        return _k.contact_step(
-            self.is_sparse, data.nefc, self.nv, data.efc_J, data.efc_J_rownnz, data.efc_J_rowadr,
-            data.efc_J_colind, data.efc_type, data.efc_force, data.efc_aref, data.efc_R, data.efc_diagA,
-            SUPPORTED, local_of_dof, dof_off, WINDOW, k_band, a_band, lt, g, system.tw_lo, system.tw_hi,
-            system.tw_c, system.s, z, system.den, mass, system.m_coef, a0, a_out, force_out, MAX_ITER, TOL)
+        trees'; system: A over them, :class:`derods._numba.implicit.System`), into a_out and
+        force_out; 1 if a row touched them."""
+        rest = (SUPPORTED, local_of_dof, dof_off, WINDOW, system, a0, a_out, force_out, MAX_ITER, TOL)
+        # The rows are views of MuJoCo's data made afresh each step: flat arrays of its own
+        # (not views into an array of structs, as data.contact's are, whose layout changes
+        # with their count), so their types are the data's.
+        return self._contact_step.keyed((data,) + rest, (self.rows(data),) + rest)
+
+    def rows(self, data: mujoco.MjData) -> _k.Efc:
+        """MuJoCo's constraint rows of this step, as the compiled stage reads them."""
+        return _k.Efc(self.is_sparse, data.nefc, self.nv, data.efc_J, data.efc_J_rownnz, data.efc_J_rowadr,
+                      data.efc_J_colind, data.efc_type, data.efc_force, data.efc_aref, data.efc_R, data.efc_diagA)
 
     def _touching_trees(self, data: mujoco.MjData) -> np.ndarray:
         """The trees that a constraint row binds to a rod dof this step (sorted)."""
@@ -142,8 +147,7 @@ class ContactStep:
         ext = WithTrees(self.model, data, system, self, trees, a0)
         dof_off = np.concatenate([self.dof_off, n + np.cumsum(sizes)])
         a_out, force_out = np.zeros(ext.n), np.zeros(ext.n)
-        touched = self._solve(data, system, ext.local_of_dof, dof_off, ext.k_band, ext.a_band, ext.lt, ext.g, ext.z,
-                              ext.mass, ext.a0, a_out, force_out)
+        touched = self._solve(data, ext.system, ext.local_of_dof, dof_off, ext.a0, a_out, force_out)
         self.a[:], self.force[:] = a_out[:n], force_out[:n]
         ext.write(data, a_out[n:])
         return touched
@@ -152,17 +156,17 @@ class ContactStep:
 class WithTrees:
     """The rods' factored system (n dofs) with the k dofs of the kinematic trees ``trees``
     appended as band blocks of their M - h D (scaled into the band's s K, so that
-    s K + m_coef M is it on them); local_of_dof (nv,) maps MuJoCo dofs to the n + k, a0
-    (n + k,) [m/s^2] the rods' unconstrained acceleration and the trees' without constraint
-    forces. With no trees, the rods' own arrays."""
+    s K + m_coef M is it on them): ``system`` (:class:`derods._numba.implicit.System`);
+    local_of_dof (nv,) maps MuJoCo dofs to the n + k, a0 (n + k,) [m/s^2] the rods'
+    unconstrained acceleration and the trees' without constraint forces. With no trees,
+    the rods' own arrays."""
 
     def __init__(self, m, d, system, contact: ContactStep, trees, a0):
         self.contact = contact
         n, s = system.n, system.s
         if not len(trees):
             self.n, self.local_of_dof = n, contact.local_of_dof
-            self.k_band, self.a_band, self.lt = system.k_band, system.a_band, system.lt
-            self.g, self.z, self.mass, self.a0 = system.g, system.z, system.mass, a0.copy()
+            self.system, self.a0 = system.arrays, a0.copy()
             self.dofs = np.zeros(0, np.int64)
             return
         dofs = tree_dofs(m, trees)
@@ -178,11 +182,10 @@ class WithTrees:
         local[dofs] = n + np.arange(k)
         zeros = np.zeros(k)
         self.n, self.local_of_dof, self.dofs, self.metric = n + k, local, dofs, metric
-        self.k_band = np.hstack([system.k_band, band / s])
-        self.a_band = np.hstack([system.a_band, band])
-        self.lt = np.vstack([system.lt, lt])
-        self.g, self.z = np.concatenate([system.g, zeros]), np.concatenate([system.z, zeros])
-        self.mass = np.concatenate([system.mass, zeros])
+        self.system = system.arrays._replace(
+            k_band=np.hstack([system.k_band, band / s]), a_band=np.hstack([system.a_band, band]),
+            lt=np.vstack([system.lt, lt]), g=np.concatenate([system.g, zeros]), z=np.concatenate([system.z, zeros]),
+            mass=np.concatenate([system.mass, zeros]))
         self.a0 = np.concatenate([a0, np.linalg.solve(metric, d.qfrc_smooth[dofs])])
 
     def write(self, d, qacc) -> None:
@@ -236,8 +239,8 @@ class ReferenceCorrection:
         if not (self.any_moving or self.margin) or data.ncon == 0:
             return
         con = data.contact
-        correct_aref(data.ncon, con.geom, con.pos, con.frame, con.dim, con.friction, con.efc_address,
-                     self.geom_body, self.moving, self.vel, data.xpos, data.efc_type, data.efc_pos,
+        contacts = Contacts(data.ncon, con.geom, con.pos, con.frame, con.dim, con.friction, con.efc_address)
+        correct_aref(contacts, self.geom_body, self.moving, self.vel, data.xpos, data.efc_type, data.efc_pos,
                      data.efc_margin, data.efc_vel, data.efc_KBIP, data.efc_aref, self.h,
                      int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL),
                      int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS))

@@ -44,7 +44,7 @@ import numpy as np
 
 from .._numba import contact as _k
 from .._numba.contact_newton import Border, newton
-from .._numba.contact_rows import bordered_rows, transpose_apply_all
+from .._numba.contact_rows import Rows, bordered_rows, transpose_apply_all
 from .._numba.dense import lu_factor, lu_solve, spd_factor
 from .._numba.implicit import sm_solve_into
 from .contact import MAX_ITER, SUPPORTED, TOL, WINDOW, ContactStep, WithTrees
@@ -128,7 +128,7 @@ class CoupledStep:
         start = ext_sys.a0.copy()
         if ext.any():
             e = ext.copy()
-            sm_solve_into(ext_sys.lt, ext_sys.g, sysm.tw_lo, sysm.tw_hi, sysm.tw_c, s, ext_sys.z, sysm.den, e)
+            sm_solve_into(ext_sys.system, e)
             start += e
         # The coupled unconstrained solution a* (holders.py's Schur complement on A).
         v_q = step.qvel[hl.dofs]
@@ -156,10 +156,10 @@ class CoupledStep:
                 big_y = np.zeros((nn, mq))
                 big_y[:n, c] = y
             # MuJoCo's impedance kept in this metric (see the module docstring)
-            weights = _k.row_weights(ext_sys.lt, ext_sys.g, sysm.tw_lo, sysm.tw_hi, sysm.tw_c, s, ext_sys.z,
-                                     sysm.den, col0, jw, fptr, fcol, fval, big_y, np.ascontiguousarray(jq),
-                                     lu, piv, d.efc_R[efc] / d.efc_diagA[efc])
-            newton_args = (h_fq, np.ascontiguousarray(h_qq), np.ascontiguousarray(jq), col0, jw, fptr, fcol, fval,
+            rows = Rows(col0, jw, fptr, fcol, fval)
+            weights = _k.row_weights(ext_sys.system, rows, big_y, np.ascontiguousarray(jq), lu, piv,
+                                     d.efc_R[efc] / d.efc_diagA[efc])
+            newton_args = (h_fq, np.ascontiguousarray(h_qq), np.ascontiguousarray(jq), rows,
                            np.ascontiguousarray(d.efc_aref[efc]), weights)
 
         def solve(arc=None):
@@ -178,11 +178,9 @@ class CoupledStep:
             aq = f_q
             if newton_args is None:
                 return a, aq, ext
-            h_fq, hqq, jq_, col0, jw, fptr, fcol, fval, aref, weights = newton_args
-            a, aq, lam, _ = newton(ext_sys.k_band, ext_sys.a_band, ext_sys.g, sysm.tw_lo, sysm.tw_hi, sysm.tw_c,
-                                   s, ext_sys.mass, sysm.m_coef, a, col0, jw, fptr, fcol, fval, aref, weights,
-                                   Border(h_fq, hqq, jq_, aq), MAX_ITER, TOL)
-            return a, aq, ext + transpose_apply_all(col0, jw, fptr, fcol, fval, lam, nn)
+            h_fq, hqq, jq_, rows, aref, weights = newton_args
+            a, aq, lam, _ = newton(ext_sys.system, a, rows, aref, weights, Border(h_fq, hqq, jq_, aq), MAX_ITER, TOL)
+            return a, aq, ext + transpose_apply_all(rows, lam, nn)
 
         if not hl.turning:  # held points only translate: no arcs
             a, aq, f = solve()

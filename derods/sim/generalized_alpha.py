@@ -30,7 +30,7 @@ limit (a projection of positions) rather than by the scheme.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -39,9 +39,9 @@ import numpy as np
 RHO_INF = 0.6
 
 
-@dataclass(frozen=True)
-class Coefficients:
-    """The scheme's coefficients (dimensionless). Build with :meth:`from_rho_inf`."""
+class Coefficients(NamedTuple):
+    """The scheme's coefficients (dimensionless; a named tuple, which the compiled step takes
+    as it is). Build with :meth:`from_rho_inf`."""
 
     alpha_m: float
     alpha_f: float

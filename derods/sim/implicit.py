@@ -29,36 +29,71 @@ class ImplicitSystem:
     """The matrix A of one implicit step for all rods, with its solves.
 
     Arrays (n dofs, T twist terms): k_band (rows, n), the band of K [N/m]; g (n,), the
-    twist directions of all rods laid end to end [1/m]; tw_lo, tw_hi (T,), each twist
-    term's dof range; tw_c (T,), its stiffness c [N m]; mass (n,) [kg]. Once the step has
-    factored it (:func:`derods._numba.implicit.factor_system`): a_band (A's band), lt (its
-    Cholesky factor, column by column, shape (n, rows), see :mod:`derods._numba.banded`),
-    z (n,) = B^-1 g per range, den (T,) = 1 + s c g.z.
+    twist directions of all rods laid end to end [1/m]; tw_rod, tw_lo, tw_hi (T,), each
+    twist term's rod and dof range; tw_c (T,), its stiffness c [N m]; mass (n,) [kg]. Once
+    the step has factored it (:func:`derods._numba.implicit.factor_system`): a_band (A's
+    band), lt (its Cholesky factor, column by column, shape (n, rows), see
+    :mod:`derods._numba.banded`), z (n,) = B^-1 g per range, den (T,) = 1 + s c g.z, and
+    m_coef, s, the weights of M and K it was factored with. ``arrays`` holds them all as
+    the compiled kernels take them (:class:`derods._numba.implicit.System`).
     """
 
     def __init__(self, h: float, n: int, mass: np.ndarray, mass_damping: float = 0.0,
                  stiffness_damping: float = 0.0, band_rows: int = XX_BANDWIDTH + 1,
-                 tw_lo=(), tw_hi=()):
+                 tw_lo=(), tw_hi=(), tw_rod=None):
         self.h = float(h)
         self.n = int(n)
-        self.mass = np.ascontiguousarray(mass, dtype=float)
         self.mass_damping = float(mass_damping)
         self.stiffness_damping = float(stiffness_damping)
-        self.s = self.h * self.h + self.h * self.stiffness_damping  # weight of K in A
-        self.m_coef = 1.0 + self.h * self.mass_damping  # weight of M in A
-        self.k_band = np.zeros((band_rows, self.n))
-        self.a_band = np.zeros((band_rows, self.n))
-        self.lt = np.zeros((self.n, band_rows))
-        self.g = np.zeros(self.n)
-        self.z = np.zeros(self.n)
-        self.tw_lo = np.asarray(tw_lo, dtype=np.int64)
-        self.tw_hi = np.asarray(tw_hi, dtype=np.int64)
-        self.tw_c = np.zeros(len(self.tw_lo))
-        self.den = np.ones(len(self.tw_lo))
+        tw_lo = np.asarray(tw_lo, dtype=np.int64)
+        tw_rod = np.arange(len(tw_lo), dtype=np.int64) if tw_rod is None else np.asarray(tw_rod, dtype=np.int64)
+        # The weights of M and K in A, backward Euler's until a step factors it with others.
+        weights = np.array([1.0 + self.h * self.mass_damping, self.h * self.h + self.h * self.stiffness_damping])
+        self.arrays = _k.System(np.zeros((band_rows, self.n)), np.ascontiguousarray(mass, dtype=float),
+                                np.zeros(self.n), tw_rod, tw_lo, np.asarray(tw_hi, dtype=np.int64),
+                                np.zeros(len(tw_lo)), np.zeros((band_rows, self.n)), np.zeros((self.n, band_rows)),
+                                np.zeros(self.n), np.ones(len(tw_lo)), weights)
+
+    @property
+    def k_band(self) -> np.ndarray:
+        return self.arrays.k_band
+
+    @k_band.setter
+    def k_band(self, band: np.ndarray) -> None:
+        self.arrays = self.arrays._replace(k_band=band)
+
+    mass = property(lambda self: self.arrays.mass)
+    g = property(lambda self: self.arrays.g)
+    tw_rod = property(lambda self: self.arrays.tw_rod)
+    tw_lo = property(lambda self: self.arrays.tw_lo)
+    tw_hi = property(lambda self: self.arrays.tw_hi)
+    tw_c = property(lambda self: self.arrays.tw_c)
+    a_band = property(lambda self: self.arrays.a_band)
+    lt = property(lambda self: self.arrays.lt)
+    z = property(lambda self: self.arrays.z)
+    den = property(lambda self: self.arrays.den)
+
+    @property
+    def m_coef(self) -> float:
+        """The weight of M in A (as last factored)."""
+        return float(self.arrays.weights[0])
+
+    @m_coef.setter
+    def m_coef(self, value: float) -> None:
+        self.arrays.weights[0] = value
+
+    @property
+    def s(self) -> float:
+        """The weight of K in A (as last factored)."""
+        return float(self.arrays.weights[1])
+
+    @s.setter
+    def s(self, value: float) -> None:
+        self.arrays.weights[1] = value
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """A^-1 rhs, rhs shape (n,) or (n, m)."""
         cols = np.array(np.atleast_2d(rhs.T), dtype=float)  # (m, n), one solve per row
         for c in cols:
-            _k.sm_solve_into(self.lt, self.g, self.tw_lo, self.tw_hi, self.tw_c, self.s, self.z, self.den, c)
+            _k.sm_solve_into(self.arrays, c)
         return cols[0] if rhs.ndim == 1 else cols.T

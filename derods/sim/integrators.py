@@ -28,6 +28,7 @@ import numpy as np
 
 from .._numba import coupling as _io
 from .._numba import implicit as _imp
+from .._numba.calls import Bound
 from .._numba.projection import limit_strain, projection_step
 from ..step import EndBodies, Frames, RodSet, Terms, evaluate
 from .clamps import Reactions
@@ -79,13 +80,15 @@ class Step:
         self.qfrc_smooth, self.qfrc_constraint = data.qfrc_smooth, data.qfrc_constraint
         self.warnings = data.warning.number
         self.gravity = np.array(model.opt.gravity, dtype=float)
+        self.params = _imp.StepParams(self.h, mass_damping, stiffness_damping, self.gravity)
+        self._unconstrained_step = Bound(_imp.unconstrained_step)  # the same bundles every step
         n = layout.n
         self.x = np.zeros_like(layout.x0)
         self.terms = Terms.empty(rods.n_rods, rods.n_vertices, n, layout.band_rows)
         tw = [i for i in range(rods.n_rods) if rods.kind[i] == 1 and rods.has_twist[i] and rods.clamped[i]]
         self.rod_tw = np.array(tw, dtype=np.int64)
         self.system = ImplicitSystem(self.h, n, layout.mass, mass_damping, stiffness_damping, layout.band_rows,
-                                     layout.dof_off[self.rod_tw], layout.dof_off[self.rod_tw + 1])
+                                     layout.dof_off[self.rod_tw], layout.dof_off[self.rod_tw + 1], self.rod_tw)
         self.system.k_band = self.terms.band  # the compiled step writes K's band in place
         self._bands, self._band_of_rod = self.terms.band[None], np.zeros(rods.n_rods, dtype=np.int64)
         self.v = np.zeros(n)
@@ -152,10 +155,8 @@ class Step:
             self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)
 
     def _unconstrained(self, lay, t, s) -> None:
-        _imp.unconstrained_step(t.band, t.grad, t.g_tw, t.coef, self.rod_tw, s.tw_lo, s.tw_hi, s.tw_c,
-                                lay.free_vertex, lay.free_body, lay.dofs, lay.mass, self.qvel, self.xfrc_applied,
-                                self.gravity, self.h, self.mass_damping, self.stiffness_damping, s.a_band, s.lt,
-                                s.g, s.z, s.den, self.v, self.other, self._rhs, self._kv, self.a0)
+        self._unconstrained_step(s.arrays, t, lay.places, self.params, self.qvel, self.xfrc_applied, self.v,
+                                 self.other, self._rhs, self._kv, self.a0)
 
     def carried(self) -> list[np.ndarray]:
         """The arrays this mode carries from one step to the next (beside MuJoCo's state),
@@ -189,9 +190,7 @@ class Explicit(Step):
     def step(self) -> None:
         self.elastic()
         lay, t, s = self.layout, self.terms, self.system
-        _imp.explicit_force(t.band, t.grad, t.g_tw, t.coef, self.rod_tw, s.tw_lo, s.tw_hi, s.tw_c,
-                            lay.free_vertex, lay.dofs, lay.mass, self.qvel, self.mass_damping,
-                            self.stiffness_damping, s.g, self.v, self._kv, self.qfrc_applied)
+        _imp.explicit_force(s.arrays, t, lay.places, self.params, self.qvel, self.v, self._kv, self.qfrc_applied)
         mujoco.mj_step(self.model, self.data)
         self.n_steps += 1
         self.check()

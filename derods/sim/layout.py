@@ -19,10 +19,12 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from functools import cached_property
 
 import mujoco
 import numpy as np
 
+from .._numba.implicit import Places
 from ..rod import Rod
 from ..stencil import RING_BANDWIDTH, XX_BANDWIDTH, ring_order
 
@@ -306,6 +308,11 @@ class Layout:
     def n(self) -> int:
         """Number of local dofs (three per free vertex)."""
         return len(self.dofs)
+
+    @cached_property
+    def places(self) -> Places:
+        """free_vertex, free_body and dofs as the compiled step takes them."""
+        return Places(self.free_vertex, self.free_body, self.dofs)
 
     def rod_of_dof(self, k: int) -> int:
         """The rod owning local dof k."""
