@@ -119,6 +119,9 @@ def main(argv: list[str] | None = None) -> int:
     c.add_argument("--results", default="results.jsonl", help="JSON-lines results file (appended, resumable)")
     c.add_argument("--report-dir", default="report", help="folder for report.md and its plots")
     c.add_argument("--workers", type=int, default=1, help="parallel processes (default 1)")
+    c.add_argument("--dask", metavar="ADDRESS", default=None,
+                   help="run the jobs on the dask.distributed cluster whose scheduler is at ADDRESS "
+                        "(tcp://host:8786; needs derods[dask]); this process alone writes the results")
     c.add_argument("--report-only", action="store_true", help="only write the report from the results file")
     c.add_argument("--full", action="store_true",
                    help="the sample report's sweep: accuracy, stability map, extreme cases")

@@ -199,7 +199,12 @@ def compare_cmd(args: argparse.Namespace) -> int:
         jobs = sweep.plan(args.cases.split(","), args.backends.split(","),
                             [int(v) for v in args.n_edges.split(",")], [float(v) for v in args.dt.split(",")],
                             tuple(args.modes.split(",")), young=args.young)
-    if jobs and args.workers > 1:
+    if args.dask and args.workers > 1:
+        raise ValueError("--dask and --workers choose where the jobs run: give one of them")
+    if jobs and args.dask:
+        with sweep.dask_executor(args.dask) as ex:
+            sweep.sweep(jobs, results, ex)
+    elif jobs and args.workers > 1:
         with concurrent.futures.ProcessPoolExecutor(args.workers) as ex:
             sweep.sweep(jobs, results, ex)
     elif jobs:
