@@ -180,6 +180,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="hair: head motion (default shake)")
     b.add_argument("--seconds", type=float, default=None, help="hair: simulated time [s] (default 1.5)")
     b.add_argument("--strand-contact", action="store_true", help="hair: strands touch one another (default off)")
+    b.add_argument("--repeats", type=_positive_int, default=None,
+                   help="timed runs after an untimed first one; us/step is the median over steps and runs "
+                        "(default 3; not the hair case: its median over steps is taken in one run)")
     b.add_argument("--json", action="store_true", help="print one JSON object per line")
     b.set_defaults(func=commands.bench)
     args = parser.parse_args(argv)

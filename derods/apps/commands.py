@@ -219,6 +219,9 @@ def bench(args: argparse.Namespace) -> int:
     from derods import bench as bench_mod
 
     if args.case == "hair":
+        if args.repeats is not None:
+            raise ValueError("--repeats is not an option of the hair case (its median step is taken over one "
+                             "run)")
         from derods.bench import hair as hair_bench
 
         given = {k: getattr(args, k) for k in ("strands", "vertices", "dt", "motion", "seconds", "backend")
@@ -230,4 +233,5 @@ def bench(args: argparse.Namespace) -> int:
             raise ValueError(f"--{name} is an option of the hair case only")
     if args.strand_contact:
         raise ValueError("--strand-contact is an option of the hair case only")
-    return bench_mod.main(args.case, bench_mod.params_from_args(args), args.json)
+    return bench_mod.main(args.case, bench_mod.params_from_args(args), args.json,
+                         repeats=3 if args.repeats is None else args.repeats)
