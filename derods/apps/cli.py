@@ -32,6 +32,13 @@ def _positive_int(text: str) -> int:
     return v
 
 
+def _count(text: str) -> int:
+    v = int(text)
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text}")
+    return v
+
+
 def _picture_options(parser: argparse.ArgumentParser, width: int, height: int, out: str, *, fps: float | None = None,
                      camera: str | None = None) -> None:
     """Add the options the picture commands share, worded the same for each, as one group of
@@ -180,7 +187,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="hair: head motion (default shake)")
     b.add_argument("--seconds", type=float, default=None, help="hair: simulated time [s] (default 1.5)")
     b.add_argument("--strand-contact", action="store_true", help="hair: strands touch one another (default off)")
-    b.add_argument("--repeats", type=_positive_int, default=None,
+    b.add_argument("--repeats", type=_count, default=None,
                    help="timed runs after an untimed first one; us/step is the median over steps and runs "
                         "(default 3; not the hair case: its median over steps is taken in one run)")
     b.add_argument("--json", action="store_true", help="print one JSON object per line")
