@@ -165,7 +165,7 @@ def main(argv: list[str] | None = None) -> int:
 
     b = sub.add_parser("bench", help="run a benchmark case and print one record per run")
     b.add_argument("case", choices=["cantilever", "frequency", "drop", "michell", "circle", "twist", "stability",
-                                     "extreme", "oscillation", "coupling", "hair"])
+                                     "extreme", "oscillation", "coupling", "hair", "pile"])
     b.add_argument("--backend", default="der", choices=["der", "flex", "cable", "elastica"],
                    help="der (default), flex (MuJoCo's 1D flexcomp), cable (MuJoCo 3.x: .venv317), "
                         "elastica (PyElastica: .venv-elastica)")
@@ -182,14 +182,16 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--mode", choices=[m for m in MODES if m != "auto"], default=None,
                    help="derods' time stepping (default implicit)")
     b.add_argument("--strands", type=int, default=None, help="hair: number of strands (default 1000)")
-    b.add_argument("--vertices", type=_positive_int, default=None, help="hair: vertices per strand (default 32)")
+    b.add_argument("--vertices", type=_positive_int, default=None,
+                   help="hair: vertices per strand (default 32); pile: per cable (default 41)")
+    b.add_argument("--cables", type=_count, default=None, help="pile: number of cables (default 100)")
     b.add_argument("--motion", choices=["shake", "nod", "turn", "still"], default=None,
                    help="hair: head motion (default shake)")
-    b.add_argument("--seconds", type=float, default=None, help="hair: simulated time [s] (default 1.5)")
+    b.add_argument("--seconds", type=float, default=None, help="hair, pile: simulated time [s] (default 1.5, 2)")
     b.add_argument("--strand-contact", action="store_true", help="hair: strands touch one another (default off)")
     b.add_argument("--repeats", type=_count, default=None,
                    help="timed runs after an untimed first one; us/step is the median over steps and runs "
-                        "(default 3; not the hair case: its median over steps is taken in one run)")
+                        "(default 3; not hair or pile: their median over steps is taken in one run)")
     b.add_argument("--json", action="store_true", help="print one JSON object per line")
     b.set_defaults(func=commands.bench)
     args = parser.parse_args(argv)
