@@ -10,7 +10,8 @@ with the floor, rod with rod and each rod with itself (``ContactParams(self_coll
 friction 1, implicit steps of ``dt`` with mass damping 1/s.
 
 A record holds ``cables``, ``vertices``, ``dt``, ``seconds``; ``build_s`` [s] (scene and
-cables to a compiled world); ``steps``, ``wall_s`` [s] (the steps alone),
+cables to a compiled world); ``steps``, ``wall_s`` [s] (the steps alone), ``cpu_s`` [s] (this process's CPU time in them:
+on a shared machine, well below wall_s when other work competes for the cores),
 ``us_per_step`` [us] (median step), ``mean_us_per_step``, ``ms_per_frame`` [ms] (the
 median step times the steps in 1/60 s) and ``mean_ms_per_frame``; ``stable``;
 ``penetration`` [m], the deepest contact (rod in floor, rod in rod) over the last half of
@@ -115,7 +116,7 @@ def run(case: PileCase, progress=None) -> dict:
     if progress:
         progress(f"built {case.cables} cables x {case.vertices} vertices in {build_s:.1f} s")
     n_steps = int(round(case.seconds / case.dt))
-    times, pen_late, pen_max = [], 0.0, 0.0
+    times, pen_late, pen_max, cpu = [], 0.0, 0.0, 0.0
     stable, note, budget = True, "", ""
     try:
         for k in range(n_steps):
@@ -123,15 +124,17 @@ def run(case: PileCase, progress=None) -> dict:
                 budget = (f"stopped after {k} of {n_steps} steps ({k * case.dt:g} s simulated): the steps had "
                           f"taken {sum(times):.0f} s, over the {case.max_wall_s:g} s budget")
                 break
-            a = time.perf_counter()
+            a, c = time.perf_counter(), time.process_time()
             world.step()
             times.append(time.perf_counter() - a)
+            cpu += time.process_time() - c
             pen = _deepest(world.data)
             pen_max = max(pen_max, pen)
             if k >= n_steps // 2:  # the heap formed
                 pen_late = max(pen_late, pen)
-            if progress and (k + 1) % max(1, n_steps // 10) == 0:
-                progress(f"step {k + 1} of {n_steps}: {1e3 * np.median(times):.1f} ms median step")
+            if progress and (k + 1) % max(1, n_steps // 20) == 0:
+                progress(f"step {k + 1} of {n_steps}: {1e3 * np.median(times):.1f} ms median step, "
+                         f"{sum(times):.0f} s wall, {cpu:.0f} s CPU")
         x = np.concatenate([world.positions(r) for r in range(case.cables)])
         if not np.all(np.isfinite(x)):
             raise DivergenceError(f"positions not finite after {len(times)} steps")
@@ -145,7 +148,7 @@ def run(case: PileCase, progress=None) -> dict:
         "vertices": case.vertices, "n_edges": case.vertices - 1, "dt": case.dt, "mode": "implicit",
         "seconds": case.seconds, "young": case.young, "friction": case.friction, "radius": RADIUS,
         "length": EDGE * (case.vertices - 1), "build_s": build_s, "steps": len(times), "sim_s": len(times) * case.dt,
-        "wall_s": float(np.sum(times)), "us_per_step": None if median is None else 1e6 * median,
+        "wall_s": float(np.sum(times)), "cpu_s": cpu, "us_per_step": None if median is None else 1e6 * median,
         "mean_us_per_step": None if mean is None else 1e6 * mean,
         "ms_per_frame": None if median is None else 1e3 * median * steps_per_frame,
         "mean_ms_per_frame": None if mean is None else 1e3 * mean * steps_per_frame,
@@ -166,7 +169,7 @@ def format_record(rec: dict) -> str:
     if not rec["stable"]:
         return f"{head} | UNSTABLE: {rec['note']}"
     return (f"{head} | {rec['ms_per_frame']:.1f} ms per 1/60 s frame (median step {rec['us_per_step'] / 1e3:.2f} ms; "
-            f"mean {rec['mean_ms_per_frame']:.1f}) | deepest contact {rec['penetration'] * 1e3:.2f} mm in the "
+            f"mean {rec['mean_ms_per_frame']:.1f}; CPU {rec['cpu_s']:.3g} s of {rec['wall_s']:.3g} s) | deepest contact {rec['penetration'] * 1e3:.2f} mm in the "
             f"second half ({rec['penetration_max'] * 1e3:.2f} max) | {rec['contacts']} contacts, heap "
             f"{rec['heap_height'] * 1e3:.0f} mm high, fastest vertex {rec['max_speed']:.2g} m/s")
 
