@@ -6,8 +6,6 @@ for the timing fields."""
 from __future__ import annotations
 
 import json
-import os
-import pathlib
 
 import pytest
 
@@ -23,14 +21,25 @@ def _plan():
     return sweep.plan(["stability"], ["der"], [8, 12], [1e-3, 1e-2], young=1e7)
 
 
+def _derods_file():
+    import derods
+
+    return derods.__file__
+
+
 @pytest.fixture(scope="module")
 def cluster():
-    # The workers are new processes: they import derods from the same place as this one.
-    repo = str(pathlib.Path(derods.__file__).resolve().parents[1])
-    path = os.pathsep.join(p for p in (repo, os.environ.get("PYTHONPATH")) if p)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
-                                  env={"PYTHONPATH": path}) as c:
+    # The workers are spawned processes: multiprocessing hands them this process's sys.path,
+    # so they import derods from where this test does (checked below).
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as c:
         yield c
+
+
+def test_the_workers_run_this_derods(cluster):
+    with distributed.Client(cluster) as client:
+        files = client.run(_derods_file)
+    assert len(files) == 2 and set(files.values()) == {derods.__file__}
 
 
 def _by_key(records):
