@@ -37,6 +37,14 @@ def test_a_small_pile_comes_to_rest_in_a_heap(capsys):
     assert rec["penetration"] < pile.RADIUS and rec["contacts"] > 0
     assert rec["max_speed"] < 0.05
     assert rec["ms_per_frame"] == pytest.approx(rec["us_per_step"] / 1e3 * 2)  # dt = 1/120 s: 2 steps a frame
+    assert rec["late_ms_per_frame"] > 0 and rec["cpu_s"] > 0
+
+
+def test_a_run_stopped_by_its_budget_says_so():
+    rec = pile.run(pile.PileCase(cables=2, vertices=5, seconds=1.0, max_wall_s=0.0))
+    assert rec["stable"] and rec["steps"] == 1 and "stopped after 1 of 120 steps" in rec["note"]
+    assert rec["late_ms_per_frame"] is None and rec["penetration"] is None
+    assert "stopped before the second half" in pile.format_record(rec)
 
 
 def test_pile_options_are_checked(capsys):
