@@ -10,8 +10,9 @@ with the floor, rod with rod and each rod with itself (``ContactParams(self_coll
 friction 1, implicit steps of ``dt`` with mass damping 1/s.
 
 A record holds ``cables``, ``vertices``, ``dt``, ``seconds``; ``build_s`` [s] (scene and
-cables to a compiled world); ``steps``, ``wall_s`` [s] (the steps alone), ``cpu_s`` [s] (this process's CPU time in them:
-on a shared machine, well below wall_s when other work competes for the cores),
+cables to a compiled world); ``steps``, ``wall_s`` [s] (the steps alone), ``cpu_s`` [s]
+(this process's CPU time in them: on a shared machine, well below wall_s when other work
+competes for the cores),
 ``us_per_step`` [us] (median step), ``mean_us_per_step``, ``ms_per_frame`` [ms] (the
 median step times the steps in 1/60 s), ``mean_ms_per_frame`` and ``late_ms_per_frame``
 (the median step of the run's second half, the heap formed: free fall is cheap, landing
