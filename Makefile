@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml
 	@echo "make: creating $(VENV) and installing derods with numpy, scipy, mujoco, numba (a minute or two)"
 	$(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/python -m pip install --quiet --upgrade pip
-	$(VENV)/bin/python -m pip install --progress-bar off -e '.[dev,ui,cosseratbench]'
+	$(VENV)/bin/python -m pip install --progress-bar off -e '.[dev,ui,cosseratbench,dask]'
 	@echo "make: compiling derods' kernels once (about a minute of CPU; later runs load them in a second)"
 	$(VENV)/bin/python -c "from derods.sim import warmup; warmup.prepare()"
 	touch $(STAMP)

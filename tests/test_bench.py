@@ -178,3 +178,55 @@ def test_holders_keep_no_dense_matrix_of_the_whole_model():
     full = np.zeros((m.nv, m.nv))
     mujoco.mj_fullM(m, d, full)
     np.testing.assert_allclose(holders._dynamics.mass(m, d, holders.tree), full[np.ix_(holders.tree, holders.tree)], rtol=1e-12)
+
+
+def test_median_step_counts_a_call_of_n_steps_as_n_steps():
+    """A call of 3 steps at 3 us each outweighs one slow step of 1000 us (a kernel loaded
+    on first use): the median step is 3 us, where wall / steps would say 252 us."""
+    from derods.bench.measures import median_step_us
+
+    assert median_step_us([(1e-3, 1), (3e-6, 3)]) == pytest.approx(3.0)
+    assert median_step_us([]) is None
+
+
+def test_step_clock_times_the_steps_alone():
+    import time
+
+    from derods.bench.measures import StepClock, record
+
+    class Sim:
+        n_steps, active_terms = 0, {}
+
+        def step(self, n=1):
+            time.sleep(2e-3 * n)
+            self.n_steps += n
+
+    clock = StepClock(Sim())
+    clock.step()
+    time.sleep(0.05)  # the case reading the rod between steps: not a step's cost
+    clock.step(3)
+    assert clock.n_steps == 4 and [n for _, n in clock.samples] == [1, 3]
+    rec = record("stability", bench.CaseParams(), clock, 1.0, 1.0, True, wall=0.06)
+    assert 2000 <= rec["us_per_step"] < 10000 and rec["wall_s"] == 0.06
+
+
+def test_bench_takes_the_median_of_repeats_after_an_untimed_run(monkeypatch, capsys):
+    from derods.bench import command
+    from derods.bench.sweep import without_timing
+
+    calls = []
+    real = command.run
+    monkeypatch.setattr(command, "run", lambda case, p: calls.append(case) or real(case, p))
+    assert main(["bench", "stability", "--n-edges", "8", "--repeats", "2", "--json"]) == 0
+    assert len(calls) == 3  # the first run in the process is not counted
+    rec = json.loads(capsys.readouterr().out)
+    each = rec["us_per_step_repeats"]
+    assert len(each) == 2 and rec["us_per_step"] == pytest.approx(np.median(each))
+    alone, = real("stability", bench.CaseParams(n_edges=8))
+    assert without_timing(rec) == without_timing(json.loads(json.dumps(alone)))
+    assert "repeats" not in rec["note"]
+
+
+def test_repeats_is_not_a_hair_option(capsys):
+    assert main(["bench", "hair", "--repeats", "2"]) == 2
+    assert "--repeats is not an option of the hair case" in capsys.readouterr().err

@@ -33,6 +33,13 @@ def _positive_int(text: str) -> int:
     return v
 
 
+def _count(text: str) -> int:
+    v = int(text)
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text}")
+    return v
+
+
 def _picture_options(parser: argparse.ArgumentParser, width: int, height: int, out: str, *, fps: float | None = None,
                      camera: str | None = None) -> None:
     """Add the options the picture commands share, worded the same for each, as one group of
@@ -120,6 +127,9 @@ def main(argv: list[str] | None = None) -> int:
     c.add_argument("--results", default="results.jsonl", help="JSON-lines results file (appended, resumable)")
     c.add_argument("--report-dir", default="report", help="folder for report.md and its plots")
     c.add_argument("--workers", type=int, default=1, help="parallel processes (default 1)")
+    c.add_argument("--dask", metavar="ADDRESS", default=None,
+                   help="run the jobs on the dask.distributed cluster whose scheduler is at ADDRESS "
+                        "(tcp://host:8786; needs derods[dask]); this process alone writes the results")
     c.add_argument("--report-only", action="store_true", help="only write the report from the results file")
     c.add_argument("--full", action="store_true",
                    help="the sample report's sweep: accuracy, stability map, extreme cases")
@@ -159,7 +169,7 @@ def main(argv: list[str] | None = None) -> int:
 
     b = sub.add_parser("bench", help="run a benchmark case and print one record per run")
     b.add_argument("case", choices=["cantilever", "frequency", "drop", "michell", "circle", "twist", "stability",
-                                     "extreme", "oscillation", "coupling", "hair"])
+                                     "extreme", "oscillation", "coupling", "hair", "pile"])
     b.add_argument("--backend", default="der", choices=["der", "flex", "cable", "elastica"],
                    help="der (default), flex (MuJoCo's 1D flexcomp), cable (MuJoCo 3.x: .venv317), "
                         "elastica (PyElastica: .venv-elastica)")
@@ -176,11 +186,16 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--mode", choices=[m for m in MODES if m != "auto"], default=None,
                    help="derods' time stepping (default implicit)")
     b.add_argument("--strands", type=int, default=None, help="hair: number of strands (default 1000)")
-    b.add_argument("--vertices", type=_positive_int, default=None, help="hair: vertices per strand (default 32)")
+    b.add_argument("--vertices", type=_positive_int, default=None,
+                   help="hair: vertices per strand (default 32); pile: per cable (default 41)")
+    b.add_argument("--cables", type=_count, default=None, help="pile: number of cables (default 100)")
     b.add_argument("--motion", choices=["shake", "nod", "turn", "still"], default=None,
                    help="hair: head motion (default shake)")
-    b.add_argument("--seconds", type=float, default=None, help="hair: simulated time [s] (default 1.5)")
+    b.add_argument("--seconds", type=float, default=None, help="hair, pile: simulated time [s] (default 1.5, 2)")
     b.add_argument("--strand-contact", action="store_true", help="hair: strands touch one another (default off)")
+    b.add_argument("--repeats", type=_count, default=None,
+                   help="timed runs after an untimed first one; us/step is the median over steps and runs "
+                        "(default 3; not hair or pile: their median over steps is taken in one run)")
     b.add_argument("--json", action="store_true", help="print one JSON object per line")
     b.set_defaults(func=commands.bench)
     args = parser.parse_args(argv)

@@ -199,7 +199,12 @@ def compare_cmd(args: argparse.Namespace) -> int:
         jobs = sweep.plan(args.cases.split(","), args.backends.split(","),
                             [int(v) for v in args.n_edges.split(",")], [float(v) for v in args.dt.split(",")],
                             tuple(args.modes.split(",")), young=args.young)
-    if jobs and args.workers > 1:
+    if args.dask and args.workers > 1:
+        raise ValueError("--dask and --workers choose where the jobs run: give one of them")
+    if jobs and args.dask:
+        with sweep.dask_executor(args.dask) as ex:
+            sweep.sweep(jobs, results, ex)
+    elif jobs and args.workers > 1:
         with concurrent.futures.ProcessPoolExecutor(args.workers) as ex:
             sweep.sweep(jobs, results, ex)
     elif jobs:
@@ -210,9 +215,26 @@ def compare_cmd(args: argparse.Namespace) -> int:
 
 
 def bench(args: argparse.Namespace) -> int:
-    """``derods bench CASE``: see :mod:`derods.bench.cases`."""
+    """``derods bench CASE``: see :mod:`derods.bench.cases` (hair: :mod:`derods.bench.hair`, pile:
+    :mod:`derods.bench.pile`)."""
     from derods import bench as bench_mod
 
+    if args.case in ("hair", "pile") and args.repeats is not None:
+        raise ValueError(f"--repeats is not an option of the {args.case} case (its median step is taken over one "
+                         "run)")
+    if args.case != "pile" and args.cables is not None:
+        raise ValueError("--cables is an option of the pile case only")
+    if args.case == "pile":
+        from derods.bench import pile
+
+        for name in ("strands", "motion"):
+            if getattr(args, name) is not None:
+                raise ValueError(f"--{name} is an option of the hair case only")
+        if args.strand_contact or args.backend != "der":
+            raise ValueError("the pile case runs on derods only, its cables always touching one another")
+        given = {k: v for k, v in (("cables", args.cables), ("vertices", args.vertices), ("dt", args.dt),
+                                   ("seconds", args.seconds)) if v is not None}
+        return pile.main(pile.PileCase(**given), args.json)
     if args.case == "hair":
         from derods.bench import hair as hair_bench
 
@@ -220,9 +242,13 @@ def bench(args: argparse.Namespace) -> int:
                  if getattr(args, k) is not None}
         given["strand_contact"] = args.strand_contact
         return hair_bench.main(hair_bench.HairCase(**given), args.json)
-    for name in ("strands", "vertices", "motion", "seconds"):
+    for name in ("strands", "motion"):
         if getattr(args, name) is not None:
             raise ValueError(f"--{name} is an option of the hair case only")
+    for name in ("vertices", "seconds"):
+        if getattr(args, name) is not None:
+            raise ValueError(f"--{name} is an option of the hair and pile cases only")
     if args.strand_contact:
         raise ValueError("--strand-contact is an option of the hair case only")
-    return bench_mod.main(args.case, bench_mod.params_from_args(args), args.json)
+    return bench_mod.main(args.case, bench_mod.params_from_args(args), args.json,
+                         repeats=3 if args.repeats is None else args.repeats)

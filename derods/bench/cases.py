@@ -48,8 +48,8 @@ from ..sim.world import World
 from ..twist import TwistBoundary
 from . import native
 from .backends import RodSimulator
-from .measures import (clamp_reaction, crossing_frequency, max_strain, out_of_plane, record, step_recording,
-                       swing_amplitudes, tip_height)
+from .measures import (StepClock, clamp_reaction, crossing_frequency, max_strain, median_step_us, out_of_plane,
+                       record, step_recording, swing_amplitudes, tip_height)
 from .params import CaseParams
 
 #: A dropped rod is at rest when no vertex moves faster than this [m/s].
@@ -73,7 +73,7 @@ def cantilever(p: CaseParams, max_time: float = 30.0) -> list[dict]:
     mat = p.material
     ref = reference.cantilever_elastica(mat.line_density * p.gravity, p.length, mat.alpha)["tip_drop"]
     # Mass-proportional damping at 0.7 of critical on the slowest mode settles it fastest.
-    world, _ = p.build.cantilever(p, p.gravity, 1.4 * _first_mode_rate(p))
+    world = StepClock(p.build.cantilever(p, p.gravity, 1.4 * _first_mode_rate(p))[0])
     chunk = max(1, int(round(0.1 / p.dt)))
     t0 = time.perf_counter()
     stable, measured, note = True, None, ""
@@ -96,6 +96,7 @@ def frequency(p: CaseParams, periods: int = 4) -> list[dict]:
     mat = p.material
     ref = reference.cantilever_frequency(mat.alpha, mat.line_density, p.length)
     world, rest_x = p.build.cantilever(p, 0.0, 0.0)
+    world = StepClock(world)
     # Start from the static shape under a uniform load (97 % first mode), tip at 1 % of L,
     # keeping the clamped edge straight.
     s = np.clip(rest_x[:, 0], 0.0, None)
@@ -127,14 +128,14 @@ def oscillation(p: CaseParams, periods: int = 10) -> list[dict]:
     the rod's mean). The cable sets shapes only when clamped: it runs the first alone."""
     mat = p.material
     f1 = reference.cantilever_frequency(mat.alpha, mat.line_density, p.length)
-    world, _ = p.build.cantilever(p, p.gravity, 0.0)
+    world = StepClock(p.build.cantilever(p, p.gravity, 0.0)[0])
     out = [_swing("clamped", p, world, f1, periods, lambda x: x[-1, 2])]
     if p.backend != "cable":
         length = FREE_LENGTH * p.length
         f_free = reference.free_free_frequency(mat.alpha, mat.line_density, length)
         free = dataclasses.replace(p, gravity=0.0, length=length)
         x = shapes.straight(length, p.n_edges, start=(0.0, 0.0, 1.0))
-        world = p.build.free_rod(free, x, None, 0.0)
+        world = StepClock(p.build.free_rod(free, x, None, 0.0))
         x0 = x.copy()
         x0[:, 2] += 0.01 * length * reference.free_free_mode(x[:, 0], length)
         world.set_positions(0, x0)
@@ -171,7 +172,7 @@ def drop(p: CaseParams, sim_time: float = 3.0, mass_damping: float = 2.0) -> lis
         x -= x.mean(axis=0)
         # Centred 0.5 m above the floor; across the box, centred on its +x edge (x = 0.15).
         x += (0.15, 0.0, 0.7) if scene == "box_edge" else (0.0, 0.0, 0.5)
-        world = p.build.free_rod(p, x, "box" if scene == "box_edge" else scene, mass_damping)
+        world = StepClock(p.build.free_rod(p, x, "box" if scene == "box_edge" else scene, mass_damping))
         t0 = time.perf_counter()
         stable, note = True, ""
         first_contact, deepest_late, deepest, rest_at = None, 0.0, 0.0, None
@@ -203,7 +204,8 @@ def drop(p: CaseParams, sim_time: float = 3.0, mass_damping: float = 2.0) -> lis
     return out
 
 
-def ring_buckles(p: CaseParams, total_twist: float, perturbation: float = 1e-3) -> tuple[bool, RodSimulator]:
+def ring_buckles(p: CaseParams, total_twist: float, perturbation: float = 1e-3,
+                 samples: list | None = None) -> tuple[bool, RodSimulator]:
     """Whether a twisted ring leaves its plane. The circle is bent out of plane by
     ``perturbation`` times its radius R (modes 2 and 3) and run for up to 40 bending
     times R^2 sqrt(rho A / alpha). It has buckled if it leaves its plane by more than
@@ -214,10 +216,11 @@ def ring_buckles(p: CaseParams, total_twist: float, perturbation: float = 1e-3) 
     plane by an amount that grows with the twist (flex: 1.25e-3 R at 0.8 of the
     threshold, n = 50, dt = 1e-2 s, even without perturbation). In the flex it is a
     time-stepping effect: unperturbed at half the threshold, n = 100, 4.7e-3 R after
-    0.3 s at dt = 1e-2, 1.1e-4 R at 1e-3, 1.2e-6 R at 1e-4."""
+    0.3 s at dt = 1e-2, 1.1e-4 R at 1e-3, 1.2e-6 R at 1e-4. samples: where the ring's
+    StepClock puts its step times (:class:`derods.bench.measures.StepClock`)."""
     mat = p.material
     radius = p.length / (2 * math.pi)
-    world = p.build.twisted_ring(p, total_twist)
+    world = StepClock(p.build.twisted_ring(p, total_twist), samples)
     x = native.ring_vertices(p)
     phi = 2 * math.pi * np.arange(p.n_edges) / p.n_edges
     xp = x.copy()
@@ -241,17 +244,18 @@ def michell(p: CaseParams, tol: float = 0.002) -> list[dict]:
     lo, hi = 0.5 * ref, 1.5 * ref
     t0 = time.perf_counter()
     stable, note, steps, world, trials = True, "", 0, None, 0
+    samples = []  # the step times of every trial ring
     try:
-        buckled_lo, world = ring_buckles(p, lo)
+        buckled_lo, world = ring_buckles(p, lo, samples=samples)
         steps += world.n_steps
-        buckled_hi, world = ring_buckles(p, hi)
+        buckled_hi, world = ring_buckles(p, hi, samples=samples)
         steps += world.n_steps
         trials = 2
         if buckled_lo or not buckled_hi:
             raise RuntimeError(f"no threshold between {lo:.4g} and {hi:.4g} rad (buckled: {buckled_lo}, {buckled_hi})")
         while hi - lo > tol * ref:
             mid = 0.5 * (lo + hi)
-            buckled, world = ring_buckles(p, mid)
+            buckled, world = ring_buckles(p, mid, samples=samples)
             steps += world.n_steps
             trials += 1
             lo, hi = (lo, mid) if buckled else (mid, hi)
@@ -262,7 +266,7 @@ def michell(p: CaseParams, tol: float = 0.002) -> list[dict]:
     rec = record("michell", p, world, measured, ref, stable, wall, beta_over_alpha=mat.beta / mat.alpha,
                  bracket=[lo, hi], trials=trials, note=note)
     rec["steps"], rec["sim_s"] = steps, steps * p.dt
-    rec["us_per_step"] = 1e6 * wall / steps if steps else None
+    rec["us_per_step"] = median_step_us(samples)
     return [rec]
 
 
@@ -270,7 +274,7 @@ def circle(p: CaseParams, max_time: float = 300.0) -> list[dict]:
     """A clamped rod curled by the end couple 2 pi alpha / L into a closed circle."""
     mat = p.material
     moment = reference.closing_couple(mat.alpha, p.length)
-    world, _ = p.build.cantilever(p, 0.0, 10.0)
+    world = StepClock(p.build.cantilever(p, 0.0, 10.0)[0])
     t0 = time.perf_counter()
     stable, note, measured = True, "", None
     try:
@@ -316,7 +320,7 @@ def twist(p: CaseParams, turns: float = 2.0, ramp: float = 2.0, hold: float = 3.
     """Reaction torque of a rod twisted by a servo-driven clamp (beta Theta / L)."""
     mat = p.material
     theta = 2 * math.pi * turns
-    world = twister_world(p)
+    world = StepClock(twister_world(p))
     ref = None
     t0 = time.perf_counter()
     stable, note, measured = True, "", None
@@ -343,6 +347,7 @@ def stability(p: CaseParams, steps: int = 300) -> list[dict]:
     Unstable: divergence reported (NaN, BADQACC, runaway speed), an edge stretched by
     more than 50 %, or the tip farther than 1.5 L from the clamp. measured: 1 stable, 0 not."""
     world, rest_x = p.build.cantilever(p, p.gravity, 0.0)
+    world = StepClock(world)
     rng = np.random.default_rng(0)
     dofs = world.dofs()
     world.data.qvel[dofs] = rng.normal(scale=1e-6, size=len(dofs))

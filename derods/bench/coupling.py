@@ -29,7 +29,7 @@ from ..reference import tip_mass_frequency
 from ..rod import Rod
 from ..sim.divergence import DivergenceError
 from ..sim.world import World
-from .measures import crossing_frequency, record, step_recording, tip_height
+from .measures import StepClock, crossing_frequency, record, step_recording, tip_height
 
 #: Body mass over rod mass.
 MASS_RATIOS = (1e-3, 1e-2, 1e-1, 1.0, 10.0, 100.0, 1000.0)
@@ -88,7 +88,7 @@ def coupling(p, periods: float = 3.0) -> list[dict]:
     out = []
     for mu in MASS_RATIOS:
         ref = tip_mass_frequency(mat.alpha, mat.line_density, p.length, mu)
-        world = held_world(p, mu * rod_mass)
+        world = StepClock(held_world(p, mu * rod_mass))
         rest = shapes.cantilever(p.length, p.n_edges, start=(0.0, 0.0, 1.0))
         _bend(world, rest, p.length)
         n_steps = int(math.ceil((periods + 0.25) / ref / p.dt))

@@ -12,7 +12,7 @@ import numpy as np
 from .. import shapes
 from ..sim.divergence import DivergenceError
 from . import native
-from .measures import closest_approach, record
+from .measures import StepClock, closest_approach, record
 from .params import BACKEND_CASES, CaseParams
 
 
@@ -44,12 +44,12 @@ def extreme(p: CaseParams) -> list[dict]:
             if name in ("soft", "steel_wire"):
                 q = dataclasses.replace(p, young=1e4) if name == "soft" else dataclasses.replace(
                     p, young=2e11, radius=5e-4, density=7850.0)
-                world, rest_x = q.build.cantilever(q, q.gravity, 1.0)
+                world = StepClock(q.build.cantilever(q, q.gravity, 1.0)[0])
                 world.step(int(round(2.0 / q.dt)))
             elif name == "impact":
                 x = shapes.straight(q.length, q.n_edges, start=(-0.5 * q.length, 0.0, 0.3),
                                     direction=(1.0, 0.0, 0.3))
-                world = q.build.free_rod(q, x, "floor")
+                world = StepClock(q.build.free_rod(q, x, "floor"))
                 world.set_velocities(0, np.tile([0.0, 0.0, -20.0], (len(x), 1)))
                 deepest = 0.0
                 for _ in range(int(round(0.5 / q.dt))):
@@ -65,15 +65,15 @@ def extreme(p: CaseParams) -> list[dict]:
                 x = np.stack([np.where(s < q.length / 2, s, q.length - s), np.zeros_like(s),
                               np.where(s < q.length / 2, 0.0, 2 * bend)], axis=1) + (0.0, 0.0, 0.5)
                 x[k] += (0.0, 0.0, bend)
-                world = q.build.free_rod(q, x, None)
+                world = StepClock(q.build.free_rod(q, x, None))
                 world.step(int(round(1.0 / q.dt)))
             elif name == "edge_ratio":
                 x = shapes.straight(q.length, q.n_edges, start=(0.0, 0.0, 1.0))
                 x[2] = x[1] + (x[2] - x[1]) * 1e-3
-                world = q.build.clamped_rod(q, x, q.gravity, 0.0)
+                world = StepClock(q.build.clamped_rod(q, x, q.gravity, 0.0))
                 world.step(int(round(1.0 / q.dt)))
             else:  # ring_20_turns
-                world = q.build.twisted_ring(q, 40 * math.pi, self_contact=True)
+                world = StepClock(q.build.twisted_ring(q, 40 * math.pi, self_contact=True))
                 xp = native.ring_vertices(q)
                 xp[:, 2] += 1e-3 * np.sin(2 * np.linspace(0, 2 * math.pi, q.n_edges, endpoint=False))
                 world.set_positions(0, xp)

@@ -4,7 +4,17 @@ A record (:func:`record`) is one dict per run with the same fields for every cas
 was run (case, backend, mujoco_version, n_edges, dt, mode, young, shear, length, radius,
 density, gravity), what came out (measured, reference, rel_error, stable), what it cost
 (steps, sim_s, wall_s, us_per_step) and what the world evaluated (active_terms); cases
-add fields of their own. The rest reads a run: a tip's height and a recording of it, the
+add fields of their own.
+
+What a run cost: ``wall_s`` [s] is the whole run, the case's own reading of the rod
+between steps included; ``us_per_step`` [us] is the median over the run's steps of the
+time of the step alone, taken by a :class:`StepClock` around the simulator. A median of
+steps is not moved by the few slow ones: the first step that needs a kernel numba has
+not loaded yet in this process (tens of ms), a pause of the machine. Repeated runs
+(``derods bench --repeats``, :func:`derods.bench.command.timed_run`) take the median of
+those medians.
+
+The rest reads a run: a tip's height and a recording of it, the
 frequency and the amplitudes of a swing, how far a ring left its plane, the largest edge
 strain, the closest approach of a loop to itself, what a rod puts on its clamp.
 """
@@ -22,11 +32,44 @@ from .backends import RodSimulator
 from .params import CaseParams
 
 
+class StepClock:
+    """A simulator whose steps are timed: ``step`` times each call of the wrapped
+    simulator's, everything else is the simulator's own. ``samples``: where the times go, a
+    list of (seconds per step, steps) per call; pass one list to several clocks to pool
+    their steps (a bisection's trial worlds)."""
+
+    def __init__(self, sim: RodSimulator, samples: list | None = None):
+        self.sim = sim
+        self.samples = [] if samples is None else samples
+
+    def step(self, n_steps: int = 1) -> None:
+        t0 = time.perf_counter()
+        self.sim.step(n_steps)
+        self.samples.append(((time.perf_counter() - t0) / n_steps, n_steps))
+
+    def __getattr__(self, name):
+        if name == "sim":  # not set yet (a copy being made): no recursion
+            raise AttributeError(name)
+        return getattr(self.sim, name)
+
+
+def median_step_us(samples) -> float | None:
+    """The median time of one step [us] over (seconds per step, steps) samples, a call of
+    n steps counting as n steps of its mean; None without a step."""
+    if not samples:
+        return None
+    per, n = np.array(samples, dtype=float).T
+    return 1e6 * float(np.median(np.repeat(per, n.astype(int))))
+
+
 def record(case: str, p: CaseParams, world: RodSimulator | None, measured, ref, stable: bool,
            wall: float, **extra) -> dict:
     """The record of one run of ``case`` (fields: see the module docstring): ``measured``
-    against ``ref``, ``wall`` [s] the run's wall time, ``extra`` the case's own fields."""
+    against ``ref``, ``wall`` [s] the run's wall time, ``extra`` the case's own fields.
+    ``us_per_step``: the median step of ``world``'s StepClock (a bare simulator: wall / steps)."""
     steps = world.n_steps if world is not None else 0
+    per_step = median_step_us(world.samples) if isinstance(world, StepClock) else (
+        1e6 * wall / steps if steps else None)
     mat = p.material
     rel = (measured - ref) / ref if (measured is not None and ref) else None
     return {
@@ -49,7 +92,7 @@ def record(case: str, p: CaseParams, world: RodSimulator | None, measured, ref, 
         "steps": steps,
         "sim_s": steps * p.dt,
         "wall_s": wall,
-        "us_per_step": 1e6 * wall / steps if steps else None,
+        "us_per_step": per_step,
         "active_terms": sorted({t for terms in world.active_terms.values() for t in terms}) if world else [],
         **extra,
     }

@@ -4,8 +4,9 @@
 modes for derods) through :func:`derods.bench.run` and appends one JSON
 record per run to a results file as soon as it finishes: a crash or Ctrl-C
 loses nothing, and a re-run skips what the file already holds. Runs go through
-any ``concurrent.futures.Executor`` (``--workers N`` uses a process pool; a
-Dask or Ray executor spreads a large sweep over a cluster). Records from other
+any ``concurrent.futures.Executor`` (``--workers N`` uses a process pool; ``--dask
+ADDRESS`` a running dask.distributed cluster, :func:`dask_executor`). Whatever runs the jobs,
+only this process writes the results file, a job's records in one append. Records from other
 environments (say, MuJoCo 3.17 for the cable) appended to the same file are
 merged into the same report (:mod:`derods.bench.report`).
 """
@@ -13,6 +14,7 @@ merged into the same report (:mod:`derods.bench.report`).
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
 import dataclasses
 import json
 import os
@@ -26,6 +28,15 @@ from .params import BACKEND_CASES, BACKENDS, CASES, CaseParams
 #: The fields that identify a run (a re-run with the same ones is skipped).
 KEY_FIELDS = ("case", "backend", "n_edges", "dt", "mode", "young", "length", "radius", "density")
 ACCURACY_CASES = ("cantilever", "frequency", "circle", "michell", "twist")
+#: The fields of a record that say what a run cost on the machine that ran it: the only
+#: ones in which two runs of the same job may differ (:func:`without_timing`).
+TIMING_FIELDS = ("wall_s", "us_per_step", "us_per_step_repeats")
+
+
+def without_timing(rec: dict) -> dict:
+    """A record without its :data:`TIMING_FIELDS`: what any run of the same job, in any
+    process or on any machine of the same environment, gives alike."""
+    return {k: v for k, v in rec.items() if k not in TIMING_FIELDS}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -173,9 +184,9 @@ def sweep(jobs: list[Job], results, executor: concurrent.futures.Executor | None
             if torn:
                 with open(results, "a") as f:
                     f.write("\n")
+        # One write of whole lines: a job's records land together or (torn) not at all.
         with open(results, "a") as f:
-            for rec in records:
-                f.write(json.dumps(rec) + "\n")
+            f.write("".join(json.dumps(rec) + "\n" for rec in records))
             f.flush()
             os.fsync(f.fileno())
 
@@ -194,3 +205,52 @@ def sweep(jobs: list[Job], results, executor: concurrent.futures.Executor | None
                 print(f"[{i + 1}/{len(todo)}] {job.case} {job.params.backend} n={job.params.n_edges} "
                       f"dt={job.params.dt:g}", file=sys.stderr)
     return len(todo)
+
+
+def _worker_environment() -> dict:
+    """What a worker runs with (called on each worker by :func:`dask_executor`)."""
+    import mujoco
+    import numpy as np
+
+    import derods
+
+    return {"derods": derods.__version__, "mujoco": mujoco.__version__, "numpy": np.__version__,
+            "python": sys.version.split()[0]}
+
+
+@contextlib.contextmanager
+def dask_executor(address: str, wait_s: float = 60.0):
+    """An executor running jobs on the dask.distributed cluster whose scheduler is at
+    ``address`` (``tcp://host:8786``), for :func:`sweep`.
+
+    Before any job it waits up to ``wait_s`` [s] for a worker, checks that every worker
+    imports derods (a ValueError says which cannot), and warns on stderr where a worker's
+    derods, MuJoCo, NumPy or Python differ from this process's (its records say which MuJoCo
+    ran them). Each job is submitted as its own task (never merged with an equal one); the
+    workers return records and only the caller writes them. Needs ``pip install
+    'derods[dask]'``."""
+    try:
+        from dask.distributed import Client
+    except ImportError as err:
+        raise ValueError("--dask needs dask.distributed: pip install 'derods[dask]' "
+                         "(or pip install 'dask[distributed]')") from err
+    try:
+        client = Client(address, timeout=wait_s)
+    except OSError as err:
+        raise ValueError(f"no dask scheduler reached at {address!r}: {err}") from err
+    with client:
+        try:
+            client.wait_for_workers(1, timeout=wait_s)
+        except TimeoutError as err:
+            raise ValueError(f"the dask scheduler at {address!r} has no worker after {wait_s:g} s") from err
+        try:
+            envs = client.run(_worker_environment)
+        except ImportError as err:
+            raise ValueError(f"a dask worker cannot import derods ({err}): install derods in the workers' "
+                             "environment (pip install -e . or the same wheel), or start them with "
+                             "PYTHONPATH naming the repository") from err
+        here = _worker_environment()
+        for worker, env in sorted(envs.items()):
+            if env != here:
+                print(f"warning: dask worker {worker} runs {env}, this process {here}", file=sys.stderr)
+        yield client.get_executor(pure=False)

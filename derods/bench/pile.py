@@ -1,0 +1,191 @@
+"""The pile benchmark: many cables dropped into a heap on the floor, touching the floor, one
+another and themselves, with friction (``derods bench pile``); what a simulated frame of
+1/60 s costs.
+
+The cables (``cables`` of ``vertices`` each, 1 cm edges, radius 5 mm, E = 1e7 Pa, 1000
+kg/m^3) start straight in horizontal layers of ceil(sqrt(cables)) parallel cables 3 cm
+apart, each layer turned by 2.4 rad from the one below and 2.5 diameters above it, the
+lowest 5 cm above the floor (mjcf/floor.xml), and fall from rest. derods' contacts: rods
+with the floor, rod with rod and each rod with itself (``ContactParams(self_collision=True)``),
+friction 1, implicit steps of ``dt`` with mass damping 1/s.
+
+A record holds ``cables``, ``vertices``, ``dt``, ``seconds``; ``build_s`` [s] (scene and
+cables to a compiled world); ``steps``, ``wall_s`` [s] (the steps alone), ``cpu_s`` [s]
+(this process's CPU time in them: on a shared machine, well below wall_s when other work
+competes for the cores),
+``us_per_step`` [us] (median step), ``mean_us_per_step``, ``ms_per_frame`` [ms] (the
+median step times the steps in 1/60 s), ``mean_ms_per_frame`` and ``late_ms_per_frame``
+(the median step of the run's second half, the heap formed: free fall is cheap, landing
+dear, so a run's median mixes the phases); ``stable``; ``penetration`` [m], the deepest
+contact (rod in floor, rod in rod) over the second half, and ``penetration_max`` over the
+whole run (a run stopped before its second half has None for the late figures); ``contacts`` at the end;
+``heap_height`` [m], the highest vertex at the end; ``max_speed`` [m/s] at the end.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from .. import scenes, shapes
+from ..material import Material
+from ..rod import Rod
+from ..sim.contact_params import ContactParams
+from ..sim.divergence import DivergenceError
+from ..sim.world import World
+
+#: One simulated frame [s]: the cost reported is per frame.
+FRAME = 1.0 / 60.0
+#: Edge length [m] and radius [m] of the cables.
+EDGE, RADIUS = 0.01, 0.005
+#: Distance between neighbouring cables of a layer, and between layers [m].
+SPACING, LAYER_GAP = 0.03, 5 * RADIUS
+#: How far each layer turns from the one below [rad].
+LAYER_TURN = 2.4
+
+
+@dataclass(frozen=True)
+class PileCase:
+    """cables, vertices: the cables and their vertices each; dt [s]; seconds [s]
+    simulated; young [Pa]; friction (sliding coefficient); max_wall_s: stop stepping once
+    the steps took this long [s] (the record then says so, and covers the steps made)."""
+
+    cables: int = 100
+    vertices: int = 41
+    dt: float = 1.0 / 120.0
+    seconds: float = 2.0
+    young: float = 1e7
+    friction: float = 1.0
+    max_wall_s: float | None = None
+
+    def __post_init__(self):
+        if int(self.cables) != self.cables or self.cables < 1:
+            raise ValueError(f"cables must be an integer >= 1, got {self.cables!r}")
+        if int(self.vertices) != self.vertices or self.vertices < 3:
+            raise ValueError(f"vertices must be an integer >= 3, got {self.vertices!r}")
+        for name, unit in (("dt", "s"), ("seconds", "s"), ("young", "Pa")):
+            if not (np.isfinite(getattr(self, name)) and getattr(self, name) > 0):
+                raise ValueError(f"{name} must be finite and > 0 [{unit}], got {getattr(self, name)!r}")
+        if not self.friction >= 0:
+            raise ValueError(f"friction must be >= 0, got {self.friction!r}")
+
+    @property
+    def material(self) -> Material:
+        return Material(young=self.young, density=1000.0, radius=RADIUS, poisson=0.5)
+
+
+def layout(case: PileCase) -> list[np.ndarray]:
+    """The cables' starting vertices [m], one (vertices, 3) array each (see the module docstring)."""
+    per_layer = math.ceil(math.sqrt(case.cables))
+    length = EDGE * (case.vertices - 1)
+    out = []
+    for k in range(case.cables):
+        layer, i = divmod(k, per_layer)
+        turn = LAYER_TURN * layer
+        along = np.array([math.cos(turn), math.sin(turn), 0.0])
+        across = np.array([-along[1], along[0], 0.0])
+        centre = (i - 0.5 * (per_layer - 1)) * SPACING * across + (0.0, 0.0, 0.05 + LAYER_GAP * layer)
+        out.append(shapes.straight(length, case.vertices - 1, start=centre - 0.5 * length * along, direction=along))
+    return out
+
+
+def build(case: PileCase) -> World:
+    """The compiled world of ``case``."""
+    world = World(scenes.path("floor"), dt=case.dt, gravity=(0.0, 0.0, -9.81), mode="implicit", mass_damping=1.0,
+                  contact=ContactParams(friction=case.friction, self_collision=True), scene_checks=False)
+    mat = case.material
+    for k, x in enumerate(layout(case)):
+        world.add_rod(Rod(x, mat, natural_curvature=False), f"cable{k}")
+    world.compile()
+    return world
+
+
+def _deepest(data) -> float:
+    """The deepest contact [m] (0 without one)."""
+    return float(max(0.0, -np.min(data.contact.dist[:data.ncon]))) if data.ncon else 0.0
+
+
+def run(case: PileCase, progress=None) -> dict:
+    """Build and run ``case``; returns its record. progress: optional ``f(text)``."""
+    t0 = time.perf_counter()
+    world = build(case)
+    build_s = time.perf_counter() - t0
+    if progress:
+        progress(f"built {case.cables} cables x {case.vertices} vertices in {build_s:.1f} s")
+    n_steps = int(round(case.seconds / case.dt))
+    times, pen_late, pen_max, cpu = [], None, 0.0, 0.0
+    stable, note, budget = True, "", ""
+    try:
+        for k in range(n_steps):
+            if case.max_wall_s is not None and sum(times) > case.max_wall_s:
+                budget = (f"stopped after {k} of {n_steps} steps ({k * case.dt:g} s simulated): the steps had "
+                          f"taken {sum(times):.0f} s, over the {case.max_wall_s:g} s budget")
+                break
+            a, c = time.perf_counter(), time.process_time()
+            world.step()
+            times.append(time.perf_counter() - a)
+            cpu += time.process_time() - c
+            pen = _deepest(world.data)
+            pen_max = max(pen_max, pen)
+            if k >= n_steps // 2:  # the heap formed
+                pen_late = max(pen_late or 0.0, pen)
+            if progress and (k + 1) % max(1, n_steps // 20) == 0:
+                progress(f"step {k + 1} of {n_steps}: {1e3 * np.median(times):.1f} ms median step, "
+                         f"{sum(times):.0f} s wall, {cpu:.0f} s CPU")
+        x = np.concatenate([world.positions(r) for r in range(case.cables)])
+        if not np.all(np.isfinite(x)):
+            raise DivergenceError(f"positions not finite after {len(times)} steps")
+    except DivergenceError as err:
+        stable, note = False, str(err)
+    steps_per_frame = FRAME / case.dt
+    median = float(np.median(times)) if times else None
+    mean = float(np.mean(times)) if times else None
+    rec = {
+        "case": "pile", "backend": "der", "mujoco_version": mujoco.__version__, "cables": case.cables,
+        "vertices": case.vertices, "n_edges": case.vertices - 1, "dt": case.dt, "mode": "implicit",
+        "seconds": case.seconds, "young": case.young, "friction": case.friction, "radius": RADIUS,
+        "length": EDGE * (case.vertices - 1), "build_s": build_s, "steps": len(times), "sim_s": len(times) * case.dt,
+        "wall_s": float(np.sum(times)), "cpu_s": cpu, "us_per_step": None if median is None else 1e6 * median,
+        "mean_us_per_step": None if mean is None else 1e6 * mean,
+        "ms_per_frame": None if median is None else 1e3 * median * steps_per_frame,
+        "mean_ms_per_frame": None if mean is None else 1e3 * mean * steps_per_frame,
+        "late_ms_per_frame": (1e3 * float(np.median(times[n_steps // 2:])) * steps_per_frame
+                              if len(times) > n_steps // 2 else None),
+        "stable": stable, "penetration": pen_late, "penetration_max": pen_max, "contacts": int(world.data.ncon),
+        "heap_height": None, "max_speed": None, "note": note or budget,
+    }
+    if stable:
+        rec["heap_height"] = float(x[:, 2].max())
+        rec["max_speed"] = float(max(np.linalg.norm(world.velocities(r), axis=1).max()
+                                     for r in range(case.cables)))
+    return rec
+
+
+def format_record(rec: dict) -> str:
+    """One readable line for a pile record."""
+    head = (f"pile: {rec['cables']} cables x {rec['vertices']} vertices, dt={rec['dt']:.4g}, "
+            f"{rec['seconds']:g} s | build {rec['build_s']:.2f} s")
+    if not rec["stable"]:
+        return f"{head} | UNSTABLE: {rec['note']}"
+    late = (f"{rec['late_ms_per_frame']:.1f} ms per frame in the second half, deepest contact there "
+            f"{rec['penetration'] * 1e3:.2f} mm" if rec["late_ms_per_frame"] is not None
+            else "stopped before the second half")
+    return (f"{head} | {rec['ms_per_frame']:.1f} ms per 1/60 s frame (median step {rec['us_per_step'] / 1e3:.2f} ms; "
+            f"mean {rec['mean_ms_per_frame']:.1f}; CPU {rec['cpu_s']:.3g} s of {rec['wall_s']:.3g} s) | {late} | "
+            f"deepest contact {rec['penetration_max'] * 1e3:.2f} mm | {rec['contacts']} contacts at the end, heap "
+            f"{rec['heap_height'] * 1e3:.0f} mm high, fastest vertex {rec['max_speed']:.2g} m/s"
+            + (f" | {rec['note']}" if rec["note"] else ""))
+
+
+def main(case: PileCase, as_json: bool, stream=None) -> int:
+    """Run the pile case and print its record; returns a process exit code."""
+    stream = sys.stdout if stream is None else stream
+    rec = run(case, progress=None if as_json else (lambda text: print(text, file=sys.stderr, flush=True)))
+    print(json.dumps(rec) if as_json else format_record(rec), file=stream, flush=True)
+    return 0

@@ -1,0 +1,58 @@
+"""The pile benchmark (derods/bench/pile.py, ``derods bench pile``): cables dropped into a
+heap, touching the floor, one another and themselves with friction, at a size that runs in
+a second (4 cables x 11 vertices)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from derods.__main__ import main
+from derods.bench import pile
+
+
+def test_layout_stacks_layers_of_parallel_cables_clear_of_one_another():
+    case = pile.PileCase(cables=10, vertices=11)
+    xs = pile.layout(case)
+    assert len(xs) == 10 and all(x.shape == (11, 3) for x in xs)
+    # 4 per layer (ceil(sqrt(10))): the third layer holds two; layers 2.5 diameters apart.
+    heights = sorted({round(float(x[0, 2]), 6) for x in xs})
+    assert np.allclose(np.diff(heights), pile.LAYER_GAP) and len(heights) == 3
+    pts = np.concatenate(xs)
+    owner = np.repeat(np.arange(10), 11)
+    d = np.linalg.norm(pts[:, None] - pts[None], axis=-1)[owner[:, None] != owner[None]]
+    assert d.min() > 4 * pile.RADIUS  # no cable starts touching another
+
+
+def test_a_small_pile_comes_to_rest_in_a_heap(capsys):
+    assert main(["bench", "pile", "--cables", "4", "--vertices", "11", "--seconds", "1", "--json"]) == 0
+    rec = json.loads(capsys.readouterr().out)
+    assert rec["case"] == "pile" and rec["cables"] == 4 and rec["vertices"] == 11
+    assert rec["stable"] and rec["steps"] == 120 and rec["note"] == ""
+    # Two layers of two, resting on one another: the top vertex one diameter above the lower
+    # layer's centres, nothing sunk by more than a radius after the impacts.
+    assert rec["heap_height"] == pytest.approx(3 * pile.RADIUS, abs=0.3 * pile.RADIUS)
+    assert rec["penetration"] < pile.RADIUS and rec["contacts"] > 0
+    assert rec["max_speed"] < 0.05
+    assert rec["ms_per_frame"] == pytest.approx(rec["us_per_step"] / 1e3 * 2)  # dt = 1/120 s: 2 steps a frame
+    assert rec["late_ms_per_frame"] > 0 and rec["cpu_s"] > 0
+
+
+def test_a_run_stopped_by_its_budget_says_so():
+    rec = pile.run(pile.PileCase(cables=2, vertices=5, seconds=1.0, max_wall_s=0.0))
+    assert rec["stable"] and rec["steps"] == 1 and "stopped after 1 of 120 steps" in rec["note"]
+    assert rec["late_ms_per_frame"] is None and rec["penetration"] is None
+    assert "stopped before the second half" in pile.format_record(rec)
+
+
+def test_pile_options_are_checked(capsys):
+    assert main(["bench", "pile", "--repeats", "2"]) == 2
+    assert main(["bench", "cantilever", "--cables", "3"]) == 2
+    assert main(["bench", "pile", "--backend", "flex"]) == 2
+    err = capsys.readouterr().err
+    assert "--repeats is not an option of the pile case" in err and "--cables is an option of the pile case only" in err
+    assert "runs on derods only" in err
+    with pytest.raises(ValueError, match="cables must be an integer >= 1"):
+        pile.PileCase(cables=0)
