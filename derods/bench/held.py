@@ -37,6 +37,11 @@ m, 32 edges; DURATION[scenario] s. Positions [m], SI throughout.
   ENERGY_RISE + h w (w = sqrt(g / ARM)) of the energy the swing releases: backward Euler
   dissipates, but MuJoCo's Euler integrator lets a pendulum's measured energy oscillate by
   ~h w / 2 (4.6 % at 1e4 kg, dt 1e-2).
+- "span": the rod clamped to the world at its start, PIVOT high, level along +x, its end held
+  (pin or clamp) by a free box (BOX) that nothing else holds: the box falls and swings below
+  on the rod. ok: no vertex and not the box ever HEIGHT_RISE above its start (released at rest
+  from its highest state, the pair cannot rise above it without gaining energy). A cable
+  between a fixed point and a hanging weight; a 3.x cable model whose B_last is free.
 
 The carts hold the cable's start CLEARANCE above its surface, the rest lying SINK into it
 (contacts from the first step; at dist = 0 MuJoCo makes none and the cable falls h^2 g). A held
@@ -51,125 +56,16 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 import mujoco
 import numpy as np
 
 from .. import shapes
-from ..material import Material
-from ..rod import Rod
 from ..sim.divergence import DivergenceError
-from ..sim.world import ContactParams, World
-
-#: Holders per scenario (the joint of the body holding the rod's start).
-SCENARIOS = {"fall": ("free", "slide"), "land": ("free",), "drag": ("slide", "mocap"), "edge": ("slide", "mocap"),
-             "lift": ("slide", "mocap"), "swing": ("hinge", "ball")}
-#: Rod length [m] per scenario.
-LENGTH = {"fall": 0.4, "land": 0.4, "swing": 0.4, "drag": 0.5, "edge": 0.5, "lift": 0.5}
-#: Simulated time [s] per scenario.
-DURATION = {"fall": 0.4, "land": 1.0, "drag": 1.0, "edge": 1.0, "lift": 1.0, "swing": 1.2}
-BOX = 0.02            #: half side [m] of the holder box (fall, land)
-FALL_TOL = 1e-4       #: fall: relative motion of rod and box over the rod length
-DROP = 0.03           #: land: the box's bottom above the floor at the start [m]
-REST_GAP = 1e-3       #: land: the box's lowest corner within this of the floor [m]
-REST_SPEED = 1e-2     #: land: at rest, slower than this [m/s]
-TRAVEL, RAMP = 0.3, 0.5   #: drag, edge: the servo target's travel [m] and its ramp time [s]
-LIFT = 0.2            #: lift: the servo target's rise [m] (over RAMP)
-TAIL_MOVE = 0.2       #: drag: the last vertex must move more than this along x [m]
-CLEARANCE = 1e-3      #: carts hold the cable this far above its surface at the start [m]
-SINK = 3e-5           #: a lying cable starts this far into its surface (about its resting depth) [m]
-LEDGE_TOP, TABLE_TOP = 0.5, 0.2   #: tops [m] of the edge's ledge and the lift's table
-LYING_SHARE = 0.1     #: lift: this share of the vertices (from the tail) must still lie (a clamp
-#                       held level lifts ~85 % of the 0.5 m cable off the table at E = 1e7)
-ARM, SWING_ANGLE, PIVOT = 0.1, math.radians(30.0), 1.0   #: swing: arm [m], release angle, pivot height [m]
-ENERGY_RISE = 0.02    #: swing: allowed rise of the energy over the released one, plus h sqrt(g / ARM)
-HEIGHT_RISE = 1e-3    #: swing: no vertex ever higher than its start by this [m]
-
-
-@dataclass(frozen=True)
-class Case:
-    """One run. scenario, holder: see SCENARIOS; mass: the holder's [kg]; end: "pin" or
-    "clamp" (the start); dt [s]; young E [Pa]; n_edges; radius [m]; density [kg/m^3];
-    strain_limit: World's (None: its default; a knob for probes); mode: World's ("auto" picks
-    "implicit" here; "alpha", "projection" to cross the modes); collide: fall only, the
-    box collides (MuJoCo's default contype); duration [s] (None: DURATION[scenario]);
-    friction: of the rod and the static geoms (None: the defaults, 1 for both)."""
-
-    scenario: str
-    holder: str
-    mass: float = 1.0
-    end: str = "pin"
-    dt: float = 1e-3
-    young: float = 1e7
-    n_edges: int = 32
-    radius: float = 3e-3
-    density: float = 1000.0
-    strain_limit: float | None = None
-    mode: str = "auto"
-    collide: bool = False
-    duration: float | None = None
-    friction: float | None = None
-
-    def __post_init__(self):
-        if self.holder not in SCENARIOS.get(self.scenario, ()):
-            raise ValueError(f"no holder {self.holder!r} in scenario {self.scenario!r}; see SCENARIOS: {SCENARIOS}")
-        if self.end not in ("pin", "clamp"):
-            raise ValueError(f"end must be 'pin' or 'clamp', got {self.end!r}")
-
-    @property
-    def length(self) -> float:
-        return LENGTH[self.scenario]
-
-    @property
-    def material(self) -> Material:
-        return Material(young=self.young, density=self.density, radius=self.radius)
-
-    @property
-    def steps(self) -> int:
-        return int(round((self.duration or DURATION[self.scenario]) / self.dt))
-
-
-@dataclass
-class Scene:
-    """A built case: the world, its holder body id, ``before(t)`` (drives; before each step,
-    t [s]), ``after()`` (records; after each step), ``judge()`` -> ({criterion: value}, [what
-    failed]); ``at_end``: judge reads the final state (skipped when the run diverged)."""
-
-    world: World
-    body: int
-    before: object = None
-    after: object = None
-    judge: object = None
-    at_end: bool = True
-    extra: dict = field(default_factory=dict)
-
-
-def _world(case: Case, xml, x: np.ndarray, natural: bool = True, raised: float = 0.0) -> tuple[World, int]:
-    """World of the MJCF ``xml`` (the <worldbody> content with a body "holder", or a pair of
-    it and an <actuator> block) with the rod of rest shape x [m] (n + 1, 3) held at its start,
-    its held vertices (one for a pin, two for a clamp) started ``raised`` [m] higher."""
-    body, act = (xml, "") if isinstance(xml, str) else xml
-    spec = mujoco.MjSpec.from_string(f"<mujoco><worldbody>{body}</worldbody>{act}</mujoco>")
-    contact = ContactParams()
-    if case.friction is not None:
-        contact = ContactParams(friction=case.friction)
-        for g in spec.geoms:
-            g.friction = [case.friction, g.friction[1], g.friction[2]]
-    # The cables start SINK into what they lie on, and over the ledge as chords that cut its
-    # corner, on purpose: the scene checks' "starts inside" is not news here.
-    world = World(spec, dt=case.dt, mode=case.mode, strain_limit=case.strain_limit, contact=contact,
-                  scene_checks=False)
-    x0 = x.copy()
-    x0[:1 if case.end == "pin" else 2, 2] += raised
-    world.add_rod(Rod(x, case.material, natural_curvature=natural), "rod", start=case.end, start_body="holder",
-                  x=x0 if raised else None)
-    world.compile()
-    return world, world.model.body("holder").id
-
-
-def _f(*v) -> str:
-    return " ".join(f"{float(a):.17g}" for a in v)
+from .held_scene import (ARM, BOX, CLEARANCE, DROP, DURATION, ENERGY_RISE, FALL_TOL, HEIGHT_RISE,  # noqa: F401
+                         LEDGE_TOP, LENGTH, LIFT, LYING_SHARE, PIVOT, RAMP, REST_GAP, REST_SPEED, SCENARIOS, SINK,
+                         SWING_ANGLE, TABLE_TOP, TAIL_MOVE, TRAVEL, Case, Scene, _box_body, _f, _world)
 
 
 def _box_sdf(x: np.ndarray, center, half) -> np.ndarray:
@@ -191,10 +87,6 @@ def _cart(case: Case, pos, axis: str, extra: str = "") -> tuple[str, str]:
             f'conaffinity="0"/></body>'), \
         f'<actuator><position joint="cart" kp="{_f(200 * m)}" kv="{_f(20 * m)}" ctrlrange="-1 1"/></actuator>'
 
-
-def _box_body(case: Case, z: float, joint: str, contact: str = "") -> str:
-    return (f'<body name="holder" pos="0 0 {_f(z)}">{joint}<geom name="holder" type="box" size="{_f(BOX, BOX, BOX)}" '
-            f'mass="{_f(case.mass)}"{contact}/></body>')
 
 
 def _fall(case: Case) -> Scene:
@@ -368,7 +260,28 @@ def _swing(case: Case) -> Scene:
     return Scene(world, body, before, after, judge, at_end=False, extra=state)
 
 
-BUILDERS = {"fall": _fall, "land": _land, "drag": _drag, "edge": _edge, "lift": _lift, "swing": _swing}
+def _span(case: Case) -> Scene:
+    r = case.length
+    x = shapes.straight(r, case.n_edges, start=(0.0, 0.0, PIVOT))
+    origin = x[-1] if case.end == "pin" else x[-2]  # the box's centre on the held vertex next to the rod
+    world, body = _world(case, f'<body name="holder" pos="{_f(*origin)}"><freejoint/><geom type="box" '
+                         f'size="{_f(BOX, BOX, BOX)}" mass="{_f(case.mass)}" contype="0" conaffinity="0"/></body>',
+                         x, held_end=True)
+    d = world.data
+    state = {"top": max(float(x[:, 2].max()), PIVOT), "rise": -np.inf}
+
+    def after():
+        state["rise"] = max(state["rise"], float(world.positions("rod")[:, 2].max()) - state["top"],
+                            float(d.xpos[body][2]) - PIVOT)
+
+    def judge():
+        bad = [f"a vertex or the box rose {state['rise']:.3g} m above its start"] * (state["rise"] > HEIGHT_RISE)
+        return {"height_rise": state["rise"]}, bad
+    return Scene(world, body, None, after, judge, at_end=False, extra=state)
+
+
+BUILDERS = {"fall": _fall, "land": _land, "drag": _drag, "edge": _edge, "lift": _lift, "swing": _swing,
+            "span": _span}
 
 
 def build(case: Case) -> Scene:
@@ -406,24 +319,34 @@ def run(case: Case) -> dict:
 
 
 MASSES = (1e-3, 1e-2, 0.1, 1.0, 10.0, 100.0, 1e4)   #: holder masses of the grid [kg]
+#: span's, without 10 t: hanging from the 3 mm rod it would stretch it 35 % at rest (m g over
+#: the inextensible stretch stiffness A 1e10 Pa), beyond what a rod model is for.
+SPAN_MASSES = MASSES[:-1]
 DTS = (1e-3, 5e-3, 1e-2)                             #: steps of the grid [s]
 #: Scenarios whose criterion holds for any stiffness (the corners E x n cross these).
-CORNER_SCENARIOS = ("fall", "land", "drag", "swing")
+CORNER_SCENARIOS = ("fall", "land", "drag", "swing", "span")
+
+
+def _masses(scenario: str, holder: str) -> tuple[float, ...]:
+    """The holder masses [kg] the full grid runs for a scenario and holder."""
+    if holder == "mocap":
+        return (1.0,)
+    return SPAN_MASSES if scenario == "span" else MASSES
 
 
 def grid(quick: bool = False, **fields) -> list[Case]:
     """The sweep: every scenario x holder x MASSES x pin/clamp x DTS at the defaults, and the
     corners E in {1e5, 1e10} Pa x n in {20, 100} at 1 kg, dt 1e-2, pin and clamp, for
     CORNER_SCENARIOS (edge and lift judge a flexible cable's shape); a mocap cart (the reference: no
-    holder dofs) at one mass. quick: 3 per
-    scenario x holder (33), light, unit and heavy holders at the three steps. ``fields``:
+    holder dofs) at one mass; span up to 100 kg (SPAN_MASSES). quick: 3 per
+    scenario x holder (36), light, unit and heavy holders at the three steps. ``fields``:
     Case fields set on every case (e.g. strain_limit=math.inf, to probe)."""
     pairs = [(s, h) for s, hs in SCENARIOS.items() for h in hs]
     if quick:
         picks = ((1e-2, "pin", 1e-2), (1.0, "clamp", 5e-3), (100.0, "pin", 1e-3))
         cases = [Case(s, h, mass=m, end=e, dt=dt) for s, h in pairs for m, e, dt in picks]
     else:
-        cases = [Case(s, h, mass=m, end=e, dt=dt) for s, h in pairs for m in (MASSES if h != "mocap" else (1.0,))
+        cases = [Case(s, h, mass=m, end=e, dt=dt) for s, h in pairs for m in _masses(s, h)
                  for e in ("pin", "clamp") for dt in DTS]
         cases += [Case(s, h, end=e, dt=1e-2, young=y, n_edges=n) for s, h in pairs if s in CORNER_SCENARIOS
                   for y in (1e5, 1e10) for n in (20, 100) for e in ("pin", "clamp")]
