@@ -99,3 +99,38 @@ def test_the_stages_are_mj_forward_where_nothing_is_skipped():
         if name.startswith("_") or name in skip or not isinstance(a, np.ndarray) or a.dtype == object:
             continue
         assert np.array_equal(a, getattr(staged, name), equal_nan=True), name
+
+
+def _mujoco_contact_total(world: World) -> np.ndarray:
+    """The total force [N] (3,) of every contact as mj_contactForce reads it, in the world frame."""
+    m, d = world.model, world.data
+    f6, total = np.zeros(6), np.zeros(3)
+    for i in range(d.ncon):
+        mujoco.mj_contactForce(m, d, i, f6)
+        total += d.contact[i].frame.reshape(3, 3).T @ f6[:3]
+    return total
+
+
+def test_mujocos_readers_see_the_contact_forces_derods_applied():
+    """mj_contactForce (and so the viewer and a user's grasp monitor) reads efc_force: derods
+    writes its own row forces there, with MuJoCo's solver skipped or run. A rod landing on
+    the box's edge, sliding and coming to rest: at every contact step the contacts' total
+    force equals the force derods applied to the rod (World.contact_force), to round-off
+    (1e-9 of the rod's weight); before, with the solver run, it was MuJoCo's own answer
+    (and with it skipped, 0)."""
+    for skip in (True, False):
+        world = World(scenes.path("box"), dt=5e-3, mass_damping=2.0)
+        mat = derods.Material(young=1e7)
+        world.add_rod(derods.Rod(shapes.straight(0.4, 20, start=(0.0, 0.01, 0.26)), mat), "rod")
+        world.compile()
+        if not skip:
+            world._step.forward.enabled = False
+        weight = mat.line_density * 0.4 * 9.81
+        checked = 0
+        for _ in range(150):
+            world.step()
+            if world.data.ncon:
+                applied = world.contact_force().sum(axis=0)
+                np.testing.assert_allclose(_mujoco_contact_total(world), applied, rtol=0, atol=1e-9 * weight)
+                checked += 1
+        assert checked > 50, checked

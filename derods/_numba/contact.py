@@ -203,7 +203,9 @@ def solve_block(row, col, val, efc_data, efc_rows, supported, local_of_dof, widt
     2. Rescale the rows' weights D = 1 / R to the implicit metric, keeping MuJoCo's
        impedance: R = (R / diagA)_MuJoCo * diag(J A^-1 J^T).
     3. From a0 + A^-1 ext, minimize MuJoCo's primal problem by Newton's method.
-    Writes a_out (m,) [m/s^2] and force_out (m,) [N] (ext + J^T lam) on the block's dofs.
+    Writes a_out (m,) [m/s^2] and force_out (m,) [N] (ext + J^T lam) on the block's dofs,
+    and each solved row's force into ``efc_data.force`` (MuJoCo's efc_force, which
+    mj_contactForce and the viewer read).
     """
     n = len(a0)
     efc_aref, efc_r, efc_diag_a = efc_data.aref[efc_rows], efc_data.r[efc_rows], efc_data.diag_a[efc_rows]
@@ -232,4 +234,6 @@ def solve_block(row, col, val, efc_data, efc_rows, supported, local_of_dof, widt
                         np.zeros(0, dtype=np.int64), r_over_diag)
         a, _, lam, _ = newton(system, a, rows, aref, d, no_border(n, len(efc)), max_iter, tol)
         force_out += transpose_apply_all(rows, lam, n)
+        for i in range(len(efc)):  # derods' row forces, where MuJoCo's readers look for them
+            efc_data.force[efc_rows[efc[i]]] = lam[i]
     a_out[:] = a

@@ -162,6 +162,8 @@ class CoupledStep:
             newton_args = (h_fq, np.ascontiguousarray(h_qq), np.ascontiguousarray(jq), rows,
                            np.ascontiguousarray(d.efc_aref[efc]), weights)
 
+        solved = np.zeros(len(efc))  # the rows' forces of the last solve [N]
+
         def solve(arc=None):
             """a, a_q and the rows' force on the rod dofs with the held points moved ``arc``
             (3H,) [m] beyond J dq (None: not at all): the unconstrained solution, then the
@@ -180,6 +182,7 @@ class CoupledStep:
                 return a, aq, ext
             h_fq, hqq, jq_, rows, aref, weights = newton_args
             a, aq, lam, _ = newton(ext_sys.system, a, rows, aref, weights, Border(h_fq, hqq, jq_, aq), MAX_ITER, TOL)
+            solved[:] = lam
             return a, aq, ext + transpose_apply_all(rows, lam, nn)
 
         if not hl.turning:  # held points only translate: no arcs
@@ -202,6 +205,10 @@ class CoupledStep:
             self._aq_last[:] = aq
         if newton_args is not None or ext.any():
             self.contact.force[:] = f[:n]
+        if len(efc):  # derods' row forces where MuJoCo's readers look (a held edge's on its holder: none)
+            d.efc_force[efc] = solved
+            if own is not None:
+                d.efc_force[:d.nefc][own] = 0.0
         af = a[:n]
         self._limit_strain(step, af, aq, stiff.jac)
         hl._dynamics.write(d, hl.tree, metric, aq)

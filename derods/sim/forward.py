@@ -14,10 +14,11 @@ where every row is, the other stages one by one without the solver, leaving what
 leave for dofs without rows, ``qacc = qacc_smooth`` and no constraint force; derods' solve
 then writes the acceleration of the rods and their holders as before.
 
-What a skipped step leaves: ``efc_force`` holds 0 for the rows derods solved (MuJoCo's own
-numbers, which derods never applied, are not computed; derods' force on the rods is
-``World.contact_force``). A model with acceleration-stage sensors (touch, force, torque,
-accelerometer, ...) keeps MuJoCo's solver, so that what those sensors read is unchanged.
+Either way derods' contact solve then writes its own row forces into ``efc_force`` (where
+``mj_contactForce`` and the viewer read them: :mod:`derods._numba.contact`,
+:mod:`derods.sim.coupled`). A model with acceleration-stage sensors (touch, force, torque,
+accelerometer, ...) keeps MuJoCo's solver, as those sensors are computed inside the forward
+pass, before derods' solve.
 """
 
 from __future__ import annotations
