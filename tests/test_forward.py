@@ -13,10 +13,11 @@ from derods.sim.contact import SUPPORTED
 from derods.sim.forward import Forward
 
 
-def _dropped(scene: str, mode: str = "implicit", skip: bool = True, xml: str | None = None) -> tuple[World, int]:
+def _dropped(scene: str, mode: str = "implicit", skip: bool = True, xml: str | None = None,
+             steps: int = 150) -> tuple[World, int]:
     """A rod dropped onto ``scene`` (across the box scene's +x edge, 6 cm above its top; 8 cm
-    above the floor) and stepped 150 steps at dt 5e-3 (it lands and lies); returns the world
-    and how many steps skipped MuJoCo's solver."""
+    above the floor) and stepped at dt 5e-3 (it lands and lies); returns the world
+    and how many steps skipped MuJoCo's solver (``steps``: how many steps, 150)."""
     world = World(mujoco.MjSpec.from_string(xml) if xml else scenes.path(scene), dt=5e-3, mode=mode,
                   mass_damping=2.0)
     start = (0.0, 0.01, 0.26) if scene == "box" else (-0.2, 0.01, 0.08)
@@ -26,7 +27,7 @@ def _dropped(scene: str, mode: str = "implicit", skip: bool = True, xml: str | N
     if not skip:
         forward.enabled = False
     skipped = 0
-    for _ in range(150):
+    for _ in range(steps):
         world.step()
         skipped += forward.skipped
     return world, skipped
@@ -58,14 +59,34 @@ def test_the_solver_runs_where_a_row_is_not_the_rods():
     assert world.positions("rod")[:, 2].min() > 0.0
 
 
-def test_sensors_that_read_forces_keep_the_solver():
-    """A model with an acceleration-stage sensor (a touch sensor) never skips: what it
-    reads stays MuJoCo's."""
+def test_a_touch_sensor_reads_the_force_derods_applied():
+    """A touch sensor on a pad the rod lands on and lies across reads, at every step, the
+    normal force derods applied there (the pad's contacts' normal forces through
+    mj_contactForce, which read derods' row forces), to 1e-9 of the rod's weight, with MuJoCo's
+    solver skipped or run: the acceleration-stage sensors are computed again after derods'
+    solve. (Before, computed inside MuJoCo's forward pass, they read MuJoCo's own answer.)"""
     xml = """<mujoco><worldbody><geom name="floor" type="plane" size="2 2 0.1"/>
-      <body name="pad" pos="0 0.3 0.01"><geom type="box" size="0.02 0.02 0.01"/><site name="pad" size="0.02"/></body>
-    </worldbody><sensor><touch site="pad"/></sensor></mujoco>"""
-    world, skipped = _dropped("", xml=xml)
-    assert not world._step.forward.enabled and skipped == 0
+      <body name="pad" pos="0 0.01 0.02"><geom name="pad" type="box" size="0.05 0.05 0.02"/>
+        <site name="pad" type="box" size="0.06 0.06 0.03"/></body>
+    </worldbody><sensor><touch name="touch" site="pad"/></sensor></mujoco>"""
+    for skip in (True, False):
+        world, skipped = _dropped("", xml=xml, skip=skip, steps=0)
+        m, d = world.model, world.data
+        pad = m.geom("pad").id
+        weight = derods.Material(young=1e7).line_density * 0.4 * 9.81
+        f6, checked = np.zeros(6), 0
+        for _ in range(150):
+            world.step()
+            skipped += world._step.forward.skipped
+            normal = 0.0
+            for i in range(d.ncon):
+                if pad in d.contact[i].geom:
+                    mujoco.mj_contactForce(m, d, i, f6)
+                    normal += f6[0]
+            if normal > 0.0:
+                assert abs(d.sensor("touch").data[0] - normal) < 1e-9 * weight
+                checked += 1
+        assert checked > 50 and (skipped > 50) == skip, (checked, skipped)
 
 
 def test_the_stages_are_mj_forward_where_nothing_is_skipped():

@@ -16,9 +16,9 @@ then writes the acceleration of the rods and their holders as before.
 
 Either way derods' contact solve then writes its own row forces into ``efc_force`` (where
 ``mj_contactForce`` and the viewer read them: :mod:`derods._numba.contact`,
-:mod:`derods.sim.coupled`). A model with acceleration-stage sensors (touch, force, torque,
-accelerometer, ...) keeps MuJoCo's solver, as those sensors are computed inside the forward
-pass, before derods' solve.
+:mod:`derods.sim.coupled`), and the acceleration-stage sensors (touch, force, torque,
+accelerometer, ...), which MuJoCo computes inside its forward pass, before derods' solve, are
+computed again after it (:meth:`Forward.sensors_after`): they read what derods applied.
 """
 
 from __future__ import annotations
@@ -42,8 +42,10 @@ class Forward:
         self.solved_dof = np.ascontiguousarray(solved_dof, dtype=np.bool_)
         self.supported = np.ascontiguousarray(supported, dtype=np.int32)
         self.is_sparse = bool(mujoco.mj_isSparse(model))
-        acc = int(mujoco.mjtStage.mjSTAGE_ACC)
-        self.enabled = not bool(np.any(model.sensor_needstage == acc))
+        #: Whether the model has acceleration-stage sensors (computed again after derods' solve).
+        self.acc_sensors = bool(np.any(model.sensor_needstage == int(mujoco.mjtStage.mjSTAGE_ACC)))
+        #: False runs mj_forward as it is (the constraint solver never skipped).
+        self.enabled = True
         self.energy = bool(model.opt.enableflags & mujoco.mjtEnableBit.mjENBL_ENERGY)
         self.sensors = model.nsensor > 0
         #: Whether the last call skipped MuJoCo's constraint solver.
@@ -82,6 +84,11 @@ class Forward:
         d.qacc[:] = d.qacc_smooth
         d.qfrc_constraint[:] = 0.0
         d.efc_force[:d.nefc] = 0.0
-        self.skipped = True
-        if self.sensors:
-            mujoco.mj_sensorAcc(m, d)
+        self.skipped = True  # the acceleration-stage sensors come after derods' solve
+
+    def sensors_after(self, d: mujoco.MjData) -> None:
+        """The acceleration-stage sensors again, from the acceleration and row forces derods
+        wrote (call after its solve)."""
+        if self.acc_sensors:
+            d.flg_rnepost = 0
+            mujoco.mj_sensorAcc(self.model, d)

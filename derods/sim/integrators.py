@@ -261,6 +261,7 @@ class Implicit(Step):
         if a is not None or self.holders:
             _io.write_acceleration(lay.dofs, lay.mass, self.a0 if a is None else a, self.qacc, self.qfrc_smooth,
                                    self.qfrc_constraint, self.resolves)
+            self.forward.sensors_after(d)  # touch and force sensors read what derods applied
         mujoco.mj_checkAcc(m, d)
         if self.euler:
             mujoco.mj_Euler(m, d)
