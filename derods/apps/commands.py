@@ -136,21 +136,24 @@ def edit(args: argparse.Namespace) -> int:
     return 0
 
 
-def view(args: argparse.Namespace) -> int:
-    """``derods view``: the drop scene in MuJoCo's viewer; drag a rod with the mouse
-    (double-click it, then Ctrl + right-drag) and the pull enters the implicit step."""
+def require_display(video_command: str) -> None:
+    """Refuse to open MuJoCo's viewer without a display, naming ``video_command`` (the
+    headless command that writes a video instead)."""
     import os
-    import time
 
     if sys.platform.startswith("linux") and not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
         raise ValueError("derods view needs a display and none is set (DISPLAY); run it on a desktop, "
-                         "or write a video with 'derods drop'")
+                         f"or write a video with '{video_command}'")
+
+
+def show(world) -> None:
+    """``world`` in MuJoCo's viewer, stepped in real time (60 frames per second) until the
+    window closes; drag a rod with the mouse (double-click it, then Ctrl + right-drag) and
+    the pull enters the implicit step."""
+    import time
+
     import mujoco.viewer
 
-    from derods.apps import drop as drop_mod
-
-    params = drop_mod.DropParams(scene=args.scene, rods=args.rods, shape=args.shape, n_edges=args.n_edges)
-    world = drop_mod.build_world(params)
     h = world.model.opt.timestep
     with mujoco.viewer.launch_passive(world.model, world.data) as viewer:
         while viewer.is_running():
@@ -158,6 +161,15 @@ def view(args: argparse.Namespace) -> int:
             world.step(max(1, int(round(1 / (60 * h)))))
             viewer.sync()
             time.sleep(max(0.0, 1 / 60 - (time.perf_counter() - start)))
+
+
+def view(args: argparse.Namespace) -> int:
+    """``derods view``: the drop scene in MuJoCo's viewer (:func:`show`)."""
+    require_display("derods drop")
+    from derods.apps import drop as drop_mod
+
+    params = drop_mod.DropParams(scene=args.scene, rods=args.rods, shape=args.shape, n_edges=args.n_edges)
+    show(drop_mod.build_world(params))
     return 0
 
 

@@ -164,21 +164,10 @@ def run(args: argparse.Namespace) -> int:
 
 def view(args: argparse.Namespace) -> int:
     """``derods view MODEL.xml``: the model in MuJoCo's viewer, stepped by derods in real time."""
-    import os
-    import time
+    from derods.apps.commands import require_display, show
 
-    if sys.platform.startswith("linux") and not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
-        raise ValueError("derods view needs a display and none is set (DISPLAY); run it on a desktop, "
-                         "or write a video with 'derods run'")
-    import mujoco.viewer
-
+    require_display("derods run")
     world = build(args.model, None, args.rods_from)
     _start(world, args)
-    h = world.model.opt.timestep
-    with mujoco.viewer.launch_passive(world.model, world.data) as viewer:
-        while viewer.is_running():
-            start = time.perf_counter()
-            world.step(max(1, int(round(1 / (60 * h)))))
-            viewer.sync()
-            time.sleep(max(0.0, 1 / 60 - (time.perf_counter() - start)))
+    show(world)
     return 0
