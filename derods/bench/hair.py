@@ -26,6 +26,7 @@ from .. import hair as hair_mod
 from .. import scenes
 from ..sim import layout
 from ..sim.divergence import DivergenceError
+from .measures import over_budget
 from . import native
 
 #: Backends the hair case runs on.
@@ -160,9 +161,8 @@ def run(case: HairCase, progress=None) -> dict:
     stable, note, budget = True, "", ""
     try:
         for k in range(n_steps):
-            if case.max_wall_s is not None and sum(times) > case.max_wall_s:
-                budget = (f"stopped after {k} of {n_steps} steps ({k * case.dt:g} s simulated): the steps had "
-                          f"taken {sum(times):.0f} s, over the {case.max_wall_s:g} s budget")
+            budget = over_budget(k, n_steps, case.dt, sum(times), case.max_wall_s)
+            if budget:
                 break
             a = time.perf_counter()
             sim.step()

@@ -62,6 +62,16 @@ def median_step_us(samples) -> float | None:
     return 1e6 * float(np.median(np.repeat(per, n.astype(int))))
 
 
+def over_budget(done: int, n_steps: int, dt: float, spent_s: float, budget_s: float | None) -> str:
+    """Why a run stops early: its steps have taken ``spent_s`` [s] of wall time, more than
+    ``budget_s`` (None: no budget), after ``done`` of ``n_steps`` steps of ``dt`` [s]; ""
+    while within it."""
+    if budget_s is None or spent_s <= budget_s:
+        return ""
+    return (f"stopped after {done} of {n_steps} steps ({done * dt:g} s simulated): the steps had "
+            f"taken {spent_s:.0f} s, over the {budget_s:g} s budget")
+
+
 def record(case: str, p: CaseParams, world: RodSimulator | None, measured, ref, stable: bool,
            wall: float, **extra) -> dict:
     """The record of one run of ``case`` (fields: see the module docstring): ``measured``

@@ -39,6 +39,7 @@ from ..rod import Rod
 from ..sim.contact_params import ContactParams
 from ..sim.divergence import DivergenceError
 from ..sim.world import World
+from .measures import over_budget
 
 #: One simulated frame [s]: the cost reported is per frame.
 FRAME = 1.0 / 60.0
@@ -123,9 +124,8 @@ def run(case: PileCase, progress=None) -> dict:
     stable, note, budget = True, "", ""
     try:
         for k in range(n_steps):
-            if case.max_wall_s is not None and sum(times) > case.max_wall_s:
-                budget = (f"stopped after {k} of {n_steps} steps ({k * case.dt:g} s simulated): the steps had "
-                          f"taken {sum(times):.0f} s, over the {case.max_wall_s:g} s budget")
+            budget = over_budget(k, n_steps, case.dt, sum(times), case.max_wall_s)
+            if budget:
                 break
             a, c = time.perf_counter(), time.process_time()
             world.step()
