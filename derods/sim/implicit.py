@@ -78,18 +78,10 @@ class ImplicitSystem:
         """The weight of M in A (as last factored)."""
         return float(self.arrays.weights[0])
 
-    @m_coef.setter
-    def m_coef(self, value: float) -> None:
-        self.arrays.weights[0] = value
-
     @property
     def s(self) -> float:
         """The weight of K in A (as last factored)."""
         return float(self.arrays.weights[1])
-
-    @s.setter
-    def s(self, value: float) -> None:
-        self.arrays.weights[1] = value
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """A^-1 rhs, rhs shape (n,) or (n, m)."""
