@@ -189,25 +189,30 @@ def test_median_step_counts_a_call_of_n_steps_as_n_steps():
     assert median_step_us([]) is None
 
 
-def test_step_clock_times_the_steps_alone():
-    import time
-
+def test_step_clock_times_the_steps_alone(monkeypatch):
+    """The clock counts the wrapped simulator's steps only: a fake clock that advances 2 ms
+    per simulated step and 50 ms between steps (the case reading the rod) gives exactly
+    2000 us per step (no wall-clock time is measured)."""
+    from derods.bench import measures
     from derods.bench.measures import StepClock, record
+
+    now = [0.0]
+    monkeypatch.setattr(measures.time, "perf_counter", lambda: now[0])
 
     class Sim:
         n_steps, active_terms = 0, {}
 
         def step(self, n=1):
-            time.sleep(2e-3 * n)
+            now[0] += 2e-3 * n
             self.n_steps += n
 
     clock = StepClock(Sim())
     clock.step()
-    time.sleep(0.05)  # the case reading the rod between steps: not a step's cost
+    now[0] += 0.05  # the case reading the rod between steps: not a step's cost
     clock.step(3)
     assert clock.n_steps == 4 and [n for _, n in clock.samples] == [1, 3]
     rec = record("stability", bench.CaseParams(), clock, 1.0, 1.0, True, wall=0.06)
-    assert 2000 <= rec["us_per_step"] < 10000 and rec["wall_s"] == 0.06
+    assert rec["us_per_step"] == pytest.approx(2000.0, rel=1e-9) and rec["wall_s"] == 0.06
 
 
 def test_bench_takes_the_median_of_repeats_after_an_untimed_run(monkeypatch, capsys):
