@@ -113,6 +113,12 @@ class Step:
         """Positions, strain check, frames, twist, forces and band of every rod, reactions."""
         if self._moving:
             mujoco.mj_kinematics(self.model, self.data)  # after mj_step, xpos shows the previous state
+            if self.reactions:
+                # ... and so do the com positions and cdof mj_applyFT's Jacobian reads: left so,
+                # the rods' reaction turned a holder about where its tree's centre of mass was
+                # a step ago, a moment of F x (h v) that pumped a clamping body's pitch (a free
+                # 0.1 kg body clamping a taut rod: pitch rate x1.5 a step at dt 1e-2)
+                mujoco.mj_comPos(self.model, self.data)
         self.forces(self._prepared(self.positions()))
 
     def _prepared(self, x: np.ndarray) -> np.ndarray:
