@@ -20,7 +20,10 @@ Numerics, the same for every experiment (see :meth:`DerodsSolver.settings`):
 - stretch: the rod's own axial stiffness E A (the catenary sags deeper by it);
   derods' rods do not shear;
 - contact: MuJoCo's detection, derods' implicit contact solve; Coulomb friction, the
-  larger coefficient of the two things touching (MuJoCo's rule, the suite's too).
+  larger coefficient of the two things touching (MuJoCo's rule, the suite's too), with
+  static friction on (``ContactParams(static_friction=True)``: sticking contacts
+  anchored, so a rope below its friction limit holds instead of creeping; the step is at
+  most 1 ms, where the anchors' ledge-dragging hops of dt = 1e-2 do not arise).
 
 Discretization. A discrete clamp holds a whole edge and acts where that edge's
 material frame sits, at its middle (:func:`derods.shapes.cantilever`); so a clamped
@@ -185,7 +188,8 @@ def contact_params(scenario: Scenario, dt: float, n_elements: int) -> ContactPar
     return ContactParams(friction=friction, condim=3 if any_friction else 1,
                          solref=(CONTACT_TIME_STEPS * dt, 1.0), solimp=CONTACT_SOLIMP,
                          self_collision=self_contact(scenario, n_elements), rod_rod=True,
-                         margin=CONTACT_MARGIN_RADII * min(r.radius for r in scenario.rods))
+                         margin=CONTACT_MARGIN_RADII * min(r.radius for r in scenario.rods),
+                         static_friction=True)
 
 
 class DerodsSolver:
@@ -229,6 +233,7 @@ class DerodsSolver:
             "contact_solref": list(contact.solref),
             "contact_solimp": list(contact.solimp),
             "contact_margin": contact.margin,
+            "static_friction": contact.static_friction,
             "self_contact": contact.self_collision,
         }
 

@@ -68,7 +68,7 @@ class GeneralizedAlpha(Implicit):
         rest = self.rods.rest_len
         self._length_scale = float(np.min(rest)) if len(rest) else 1.0
 
-    carried_flags = ("_start",)
+    carried_flags = Implicit.carried_flags + ("_start",)
 
     def carried(self) -> list[np.ndarray]:
         return super().carried() + [self.a_prev]

@@ -94,14 +94,17 @@ def check_integrator(model: mujoco.MjModel, mode: str) -> None:
 
 
 def make_step(mode: str, model, data, layout, entries, rods, fr, ends, mass_damping: float,
-              stiffness_damping: float, diagnosis, strain_limit: float | None, holder_contact: bool):
+              stiffness_damping: float, diagnosis, strain_limit: float | None, contact):
     """The step of ``mode`` (:data:`STEPS`), with the World's strain limit (None keeps the
-    step's default) and whether held edges touch their holders."""
+    step's default) and what of its :class:`~derods.sim.contact_params.ContactParams` the
+    step reads (whether held edges touch their holders, static friction)."""
     step = STEPS[mode](model, data, layout, entries, rods, fr, ends, mass_damping, stiffness_damping, diagnosis)
     if strain_limit is not None:
         step.strain_limit = strain_limit
     if getattr(step, "coupled", None) is not None:
-        step.coupled.holder_contact = holder_contact
+        step.coupled.holder_contact = contact.holder_contact
+    if getattr(step, "friction", None) is not None and not contact.static_friction:
+        step.friction.enabled = False
     return step
 
 

@@ -35,6 +35,7 @@ from .clamps import Reactions
 from .contact import SUPPORTED, ContactStep, ReferenceCorrection
 from .coupled import CoupledStep
 from .forward import Forward
+from .friction import StaticFriction
 from .divergence import MAX_SPEED, MAX_STRAIN, Diagnosis
 from .holders import Holders
 from .implicit import ImplicitSystem
@@ -222,6 +223,7 @@ class Implicit(Step):
         rod_flex = [mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_FLEX, e.name) for e in self.entries]
         margin = bool(np.any(self.model.flex_margin[rod_flex] > 0))
         self.reference = ReferenceCorrection(self.model, self.data, margin)
+        self.friction = StaticFriction(self.model)
         self.euler = self.model.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
         # Whether MuJoCo's integrator takes qacc from the forces again: the implicit ones
         # always, Euler's when any dof is damped (it solves (M + h B) qacc = f then), so the
@@ -254,6 +256,8 @@ class Implicit(Step):
         self.forward(d)
         if self.reference:
             self.reference.correct(d)
+        if self.friction:
+            self.friction.anchor(d)
         if self.holders:
             # Rods, holders, touching bodies and their contacts in one solve, and the strain
             # limit with the held vertices where their bodies take them (derods.sim.coupled).
@@ -264,6 +268,8 @@ class Implicit(Step):
                 # Contact impulses turn edges too: limit the strain they leave, moving only
                 # the vertices no contact pushes on.
                 self.n_projected += self._limit_strain(a, self._touching())
+        if self.friction:
+            self.friction.slipped(d)
         if a is not None or self.holders:
             _io.write_acceleration(lay.dofs, lay.mass, self.a0 if a is None else a, self.qacc, self.qfrc_smooth,
                                    self.qfrc_constraint, self.resolves)
@@ -276,6 +282,18 @@ class Implicit(Step):
         self._integrated(self.a0 if a is None else a)
         self.n_steps += 1
         self.check()
+
+    #: The static friction's anchors are carried from step to step (see Step.carried_flags).
+    carried_flags = ("friction_state",)
+
+    @property
+    def friction_state(self):
+        """The anchors of the rods' sticking contacts (:class:`derods._numba.friction.Anchors`)."""
+        return self.friction.state
+
+    @friction_state.setter
+    def friction_state(self, state) -> None:
+        self.friction.state = state
 
     def _evaluate(self, x: np.ndarray) -> int:
         if self.holders and self.holders.shares_band:  # one evaluation for both bands
