@@ -145,3 +145,12 @@ def sparse_block_into(values, rowadr, rownnz, colind, dofs, out):
                 out[p, q] = values[e]
                 out[q, p] = values[e]
 
+
+@nb.njit(cache=True)
+def damped_block_into(values, rowadr, rownnz, colind, dofs, damping, h, out):
+    """out (k, k) <- :func:`sparse_block_into`'s block of M on the sorted ``dofs`` (k,), its
+    diagonal less h D with D = -damping[dofs] (damping (nv,) [N s/m or N m s]): the
+    M - h D of MuJoCo's Euler integrator, which takes the joint damping implicitly."""
+    sparse_block_into(values, rowadr, rownnz, colind, dofs, out)
+    for p in range(len(dofs)):
+        out[p, p] -= h * -damping[dofs[p]]
