@@ -45,6 +45,7 @@ import numpy as np
 from .._numba import contact as _k
 from .._numba.contact_newton import Border, newton
 from .._numba.contact_rows import Rows, bordered_rows, transpose_apply_all
+from .._numba.coupled import holder_steps_into, moved_into
 from .._numba.dense import lu_factor, lu_solve, spd_factor
 from .._numba.implicit import sm_solve_into
 from .contact import MAX_ITER, SUPPORTED, TOL, WINDOW, ContactStep, WithTrees
@@ -82,6 +83,7 @@ class CoupledStep:
         self._qvel = np.zeros(model.nv)
         self._no_rows = np.zeros(0, dtype=np.bool_)
         self._aq_last = np.zeros(self.m)
+        self._dq = np.zeros(len(holders.dofs))  # the holder dofs' step [m or rad]
         self._arc_tol = ARC_TOL * holders.shortest_edge
         #: Whether the dofs that move held points are all of their trees' (a cart, a box, an arm).
         self._whole_tree = len(holders.dofs) == self.m
@@ -225,13 +227,14 @@ class CoupledStep:
         long, and the box diverged; moving the held points by their holders' inertia
         instead, without their contacts, did not help either.) jac (3H, k): the held
         points' Jacobian: where no held point turns, they move by it exactly."""
-        hl, h = self.holders, step.h
-        self.held_x[:] = step.x
+        hl = self.holders
         if not hl.turning and self._held_are_riding:
-            v_q = step.qvel[hl.dofs] + h * aq[hl._in_tree]
-            self.held_x[hl.held] += (jac @ (h * v_q)).reshape(-1, 3)
-        elif len(self._riding_vertex):
-            self._predict_held(step, aq)
+            holder_steps_into(step.qvel, hl.dofs, aq, hl._in_tree, step.h, self._dq)
+            moved_into(step.x, hl.held, jac @ self._dq, self.held_x)
+        else:
+            self.held_x[:] = step.x
+            if len(self._riding_vertex):
+                self._predict_held(step, aq)
         step.n_projected = step._limit_strain(af, step._touching(), self.held_x)
 
     def _predict_held(self, step, aq: np.ndarray) -> None:
