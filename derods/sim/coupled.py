@@ -45,8 +45,8 @@ import numpy as np
 from .._numba import contact as _k
 from .._numba.contact_newton import Border, newton
 from .._numba.contact_rows import Rows, bordered_rows, transpose_apply_all
-from .._numba.coupled import holder_steps_into, moved_into
-from .._numba.dense import lu_factor, lu_solve, spd_factor
+from .._numba.coupled import force_into, holder_steps_into, moved_into, start_into
+from .._numba.dense import lu_solve, spd_factor
 from .._numba.implicit import sm_solve_into
 from .contact import MAX_ITER, SUPPORTED, TOL, WINDOW, ContactStep, WithTrees
 from .holders import Holders
@@ -84,6 +84,10 @@ class CoupledStep:
         self._no_rows = np.zeros(0, dtype=np.bool_)
         self._aq_last = np.zeros(self.m)
         self._dq = np.zeros(len(holders.dofs))  # the holder dofs' step [m or rad]
+        # The step's unconstrained solution (see __call__): y0 (n,), S and its LU factors, the force.
+        self._y0 = np.zeros(layout.n)
+        self._schur, self._lu = np.zeros((self.m, self.m)), np.zeros((self.m, self.m))
+        self._piv, self._force = np.zeros(self.m, dtype=np.int64), np.zeros(self.m)
         self._arc_tol = ARC_TOL * holders.shortest_edge
         #: Whether the dofs that move held points are all of their trees' (a cart, a box, an arm).
         self._whole_tree = len(holders.dofs) == self.m
@@ -109,12 +113,11 @@ class CoupledStep:
         stiff = hl.stiffness_columns(step)
         k_f, k_q = stiff.k_f, stiff.k_q
         metric = hl._dynamics.metric(m, d, hl.tree)
-        cc = slice(None) if self._whole_tree else np.ix_(c, c)  # the held-dof block of the tree's
         if self._whole_tree:
             h_qq = metric + s * k_q
         else:
             h_qq = metric.copy()
-            h_qq[cc] += s * k_q
+            h_qq[np.ix_(c, c)] += s * k_q  # the held-dof block of the tree's
         # The rods' system, extended by the trees the rows bind to rods this step.
         trees = self.contact._touching_trees(d) if (self.contact.bodies and d.nefc) else np.zeros(0, np.int64)
         ext_sys = WithTrees(m, d, sysm, self.contact, trees, step.a0)
@@ -132,21 +135,19 @@ class CoupledStep:
             e = ext.copy()
             sm_solve_into(ext_sys.system, e)
             start += e
-        # The coupled unconstrained solution a* (holders.py's Schur complement on A).
+        # The coupled unconstrained solution a* (holders.py's Schur complement on A): numpy's
+        # products, the rest compiled (derods._numba.coupled).
         v_q = step.qvel[hl.dofs]
         y = sysm.solve(s * k_f)  # A^-1 s K_fq, (n, k)
-        y0 = start[:n] - (b + h) / s * (y @ v_q)
-        schur = h_qq.copy()
-        schur[cc] -= s * (k_f.T @ y)
+        y0, schur, force, lu, piv = self._y0, self._schur, self._force, self._lu, self._piv
+        start_into(start, y @ v_q, (b + h) / s, h_qq, k_f.T @ y, s, c, y0, schur)
         # (slide-only holders have the Gauss-Newton K_qq = J^T K_hh J: S >= M by construction)
         fix = definite(schur, metric) if hl.turning else None
         if fix is not None:
             schur += fix
             h_qq += fix
-        force = step.qfrc_smooth[hl.tree] + ext_q
-        force[c] -= (b + h) * (k_f.T @ step.v + k_q @ v_q) + s * (k_f.T @ y0)
-        lu, piv = schur.copy(), np.zeros(mq, dtype=np.int64)  # S's factors, for every solve below
-        lu_factor(lu, piv)
+        force_into(step.qfrc_smooth, hl.tree, ext_q, c, b + h, k_f.T @ step.v, k_q @ v_q, s, k_f.T @ y0, schur,
+                   force, lu, piv)  # and S's factors, for every solve below
         self.contact.force[:] = 0.0
         newton_args = None
         if len(efc):
