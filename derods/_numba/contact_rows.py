@@ -407,25 +407,3 @@ def far_columns(rows, n):
             first = min(first, fcol[q])
     return cols, first
 
-
-@nb.njit(cache=True)
-def bordered_rows(is_sparse, nefc, nv, efc_j, rownnz, rowadr, colind, efc_type, supported_types, own, efc_force,
-                  local_of_dof, border_of_dof, n, m, width):
-    """MuJoCo's rows split for a solve over n local dofs bordered by m more, in one call:
-    :func:`efc_triplets`, the supported types (supported_types (2,)), the rows ``own``
-    (nefc,) bool or empty, that take no force at all (neither solved nor MuJoCo's: a held
-    edge against its own holder), :func:`split_bordered_rows` and the far rows' CSR
-    (:func:`far_rows_csr`). Returns split_bordered_rows' tuple and (fptr, fcol, fval)."""
-    row, col, val = efc_triplets(is_sparse, nefc, nv, efc_j, rownnz, rowadr, colind)
-    supported = np.empty(nefc, dtype=np.bool_)
-    force = np.empty(nefc)
-    for r in range(nefc):
-        supported[r] = efc_type[r] == supported_types[0] or efc_type[r] == supported_types[1]
-        force[r] = efc_force[r]
-        if len(own) and own[r]:
-            supported[r] = False
-            force[r] = 0.0
-    efc, kb, col0, jw, jf, jq, ext, ext_q = split_bordered_rows(row, col, val, local_of_dof, border_of_dof, supported,
-                                                                 force, n, m, width)
-    fptr, fcol, fval = far_rows_csr(jf)
-    return efc, kb, col0, jw, jf, jq, ext, ext_q, fptr, fcol, fval

@@ -96,17 +96,35 @@ def lu_solve(a, piv, b):
 def inverse_quadratic_rows(a, piv, u):
     """diag(U A^-1 U^T) (k,) for U (k, m), A's factors from :func:`lu_factor`: each row's
     quadratic form in A^-1 (a constraint row's share of the Delassus diagonal through the
-    border's Schur complement)."""
+    border's Schur complement).
+
+    Every row is solved as :func:`lu_solve` solves it, the same operations in the same
+    order, but all rows at once, sweep by sweep: a call of lu_solve per row cost ~40 ns
+    (4.6 us for a cart's 112 floor rows, m = 1), more than its arithmetic."""
     k, m = u.shape
+    x = u.copy()
+    for c in range(m):
+        p = piv[c]
+        if p != c:
+            for i in range(k):
+                x[i, c], x[i, p] = x[i, p], x[i, c]
+    for c in range(m):
+        for i in range(k):
+            acc = x[i, c]
+            for q in range(c):
+                acc -= a[c, q] * x[i, q]
+            x[i, c] = acc
+    for c in range(m - 1, -1, -1):
+        for i in range(k):
+            acc = x[i, c]
+            for q in range(c + 1, m):
+                acc -= a[c, q] * x[i, q]
+            x[i, c] = acc / a[c, c]
     out = np.empty(k)
-    x = np.empty(m)
     for i in range(k):
-        for j in range(m):
-            x[j] = u[i, j]
-        lu_solve(a, piv, x)
         acc = 0.0
         for j in range(m):
-            acc += u[i, j] * x[j]
+            acc += u[i, j] * x[i, j]
         out[i] = acc
     return out
 
@@ -126,3 +144,13 @@ def sparse_block_into(values, rowadr, rownnz, colind, dofs, out):
             if q < k and dofs[q] == j:
                 out[p, q] = values[e]
                 out[q, p] = values[e]
+
+
+@nb.njit(cache=True)
+def damped_block_into(values, rowadr, rownnz, colind, dofs, damping, h, out):
+    """out (k, k) <- :func:`sparse_block_into`'s block of M on the sorted ``dofs`` (k,), its
+    diagonal less h D with D = -damping[dofs] (damping (nv,) [N s/m or N m s]): the
+    M - h D of MuJoCo's Euler integrator, which takes the joint damping implicitly."""
+    sparse_block_into(values, rowadr, rownnz, colind, dofs, out)
+    for p in range(len(dofs)):
+        out[p, p] -= h * -damping[dofs[p]]

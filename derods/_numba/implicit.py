@@ -112,6 +112,17 @@ def sm_solve_into(system, x):
 
 
 @nb.njit(cache=True)
+def sm_solve_columns_into(system, x):
+    """x <- A^-1 x for every column of x (n, m) in place, each as :func:`sm_solve_into`
+    solves a vector (``system`` a :class:`System`)."""
+    col = np.empty(x.shape[0])
+    for c in range(x.shape[1]):
+        col[:] = x[:, c]
+        sm_solve_into(system, col)
+        x[:, c] = col
+
+
+@nb.njit(cache=True)
 def k_matvec_into(system, w, y):
     """y = K w = K_band w + sum_i c_i g_i (g_i . w) (``system`` a :class:`System`)."""
     g, tw_lo, tw_hi, tw_c = system.g, system.tw_lo, system.tw_hi, system.tw_c

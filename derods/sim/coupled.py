@@ -43,10 +43,12 @@ import mujoco
 import numpy as np
 
 from .._numba import contact as _k
+from .._numba.calls import Bound
 from .._numba.contact_newton import Border, newton
-from .._numba.contact_rows import Rows, bordered_rows, transpose_apply_all
-from .._numba.dense import lu_factor, lu_solve, spd_factor
-from .._numba.implicit import sm_solve_into
+from .._numba.coupled import (BorderedRows, bordered_rows, force_into, holder_steps_into, moved_into,
+                              row_forces_into, start_into)
+from .._numba.dense import lu_solve, spd_factor
+from .._numba.implicit import sm_solve_columns_into, sm_solve_into
 from .contact import MAX_ITER, SUPPORTED, TOL, WINDOW, ContactStep, WithTrees
 from .holders import Holders
 
@@ -82,6 +84,18 @@ class CoupledStep:
         self._qvel = np.zeros(model.nv)
         self._no_rows = np.zeros(0, dtype=np.bool_)
         self._aq_last = np.zeros(self.m)
+        self._dq = np.zeros(len(holders.dofs))  # the holder dofs' step [m or rad]
+        # The step's unconstrained solution (see __call__): s K_fq and y = A^-1 s K_fq (n, k),
+        # y0 (n,), H_qq, S and its LU factors, the holders' force; Newton's start a (n,), a_q.
+        k = len(holders.dofs)
+        self._sk_f, self._y, self._y0 = np.zeros((layout.n, k)), np.zeros((layout.n, k)), np.zeros(layout.n)
+        self._h_qq, self._schur, self._lu = (np.zeros((self.m, self.m)) for _ in range(3))
+        self._piv, self._force = np.zeros(self.m, dtype=np.int64), np.zeros(self.m)
+        self._a, self._aq = np.zeros(layout.n), np.zeros(self.m)
+        # Compiled calls that take the same argument objects step after step (or ones made
+        # alike, see _keyed): typed once.
+        self._solve_columns, self._bordered_rows = Bound(sm_solve_columns_into), Bound(bordered_rows)
+        self._row_weights, self._newton, self._row_forces = Bound(_k.row_weights), Bound(newton), Bound(row_forces_into)
         self._arc_tol = ARC_TOL * holders.shortest_edge
         #: Whether the dofs that move held points are all of their trees' (a cart, a box, an arm).
         self._whole_tree = len(holders.dofs) == self.m
@@ -107,68 +121,63 @@ class CoupledStep:
         stiff = hl.stiffness_columns(step)
         k_f, k_q = stiff.k_f, stiff.k_q
         metric = hl._dynamics.metric(m, d, hl.tree)
-        cc = slice(None) if self._whole_tree else np.ix_(c, c)  # the held-dof block of the tree's
+        h_qq = self._h_qq
         if self._whole_tree:
-            h_qq = metric + s * k_q
+            np.add(metric, s * k_q, out=h_qq)
         else:
-            h_qq = metric.copy()
-            h_qq[cc] += s * k_q
+            h_qq[:] = metric
+            h_qq[np.ix_(c, c)] += s * k_q  # the held-dof block of the tree's
         # The rods' system, extended by the trees the rows bind to rods this step.
         trees = self.contact._touching_trees(d) if (self.contact.bodies and d.nefc) else np.zeros(0, np.int64)
         ext_sys = WithTrees(m, d, sysm, self.contact, trees, step.a0)
         nn = ext_sys.n
-        if d.nefc:
-            own = self._own_holder_rows(d)  # neither solved nor MuJoCo's: no force at all
-            efc, kb, col0, jw, jf, jq, ext, ext_q, fptr, fcol, fval = bordered_rows(
-                self.is_sparse, d.nefc, self.nv, d.efc_J, d.efc_J_rownnz, d.efc_J_rowadr, d.efc_J_colind, d.efc_type,
-                SUPPORTED, self._no_rows if own is None else own, d.efc_force, ext_sys.local_of_dof,
-                self.border_of_dof, nn, mq, WINDOW)
-        else:
-            efc, ext, ext_q = np.zeros(0, np.int64), np.zeros(nn), np.zeros(mq)
+        # Without touching trees, the compiled calls get the same objects every step, or ones
+        # made alike (see _keyed); with them, the system and the dof maps are made afresh.
+        plain = nn == n and self._whole_tree
+        own = self._own_holder_rows(d) if d.nefc else None  # neither solved nor MuJoCo's: no force at all
+        rows = self._rows(d, ext_sys, own) if d.nefc else None
+        ext, ext_q = (rows.ext, rows.ext_q) if rows is not None else (np.zeros(nn), np.zeros(mq))
         start = ext_sys.a0.copy()
         if ext.any():
             e = ext.copy()
             sm_solve_into(ext_sys.system, e)
             start += e
-        # The coupled unconstrained solution a* (holders.py's Schur complement on A).
+        # The coupled unconstrained solution a* (holders.py's Schur complement on A): numpy's
+        # products, the rest compiled (derods._numba.coupled).
         v_q = step.qvel[hl.dofs]
-        y = sysm.solve(s * k_f)  # A^-1 s K_fq, (n, k)
-        y0 = start[:n] - (b + h) / s * (y @ v_q)
-        schur = h_qq.copy()
-        schur[cc] -= s * (k_f.T @ y)
+        sk_f, y = self._sk_f, self._y
+        np.multiply(s, k_f, out=sk_f)
+        y[:] = sk_f
+        self._solve_columns(sysm.arrays, y)  # A^-1 s K_fq, (n, k)
+        y0, schur, force, lu, piv = self._y0, self._schur, self._force, self._lu, self._piv
+        start_into(start, y @ v_q, (b + h) / s, h_qq, k_f.T @ y, s, c, y0, schur)
         # (slide-only holders have the Gauss-Newton K_qq = J^T K_hh J: S >= M by construction)
         fix = definite(schur, metric) if hl.turning else None
         if fix is not None:
             schur += fix
             h_qq += fix
-        force = step.qfrc_smooth[hl.tree] + ext_q
-        force[c] -= (b + h) * (k_f.T @ step.v + k_q @ v_q) + s * (k_f.T @ y0)
-        lu, piv = schur.copy(), np.zeros(mq, dtype=np.int64)  # S's factors, for every solve below
-        lu_factor(lu, piv)
-        self.contact.force[:] = 0.0
-        newton_args = None
-        if len(efc):
-            if nn == n and self._whole_tree:  # no touching trees; the held dofs are the trees'
-                h_fq, big_y = s * k_f, np.ascontiguousarray(y)
+        force_into(step.qfrc_smooth, hl.tree, ext_q, c, b + h, k_f.T @ step.v, k_q @ v_q, s, k_f.T @ y0, schur,
+                   force, lu, piv)  # and S's factors, for every solve below
+        solving = rows is not None and len(rows.efc) > 0
+        if solving:
+            if plain:  # no touching trees; the held dofs are the trees'
+                h_fq, big_y = sk_f, y
             else:
                 h_fq = np.zeros((nn, mq))
-                h_fq[:n, c] = s * k_f
+                h_fq[:n, c] = sk_f
                 big_y = np.zeros((nn, mq))
                 big_y[:n, c] = y
             # MuJoCo's impedance kept in this metric (see the module docstring)
-            rows = Rows(col0, jw, fptr, fcol, fval)
-            weights = _k.row_weights(ext_sys.system, rows, big_y, np.ascontiguousarray(jq), lu, piv,
-                                     d.efc_R[efc] / d.efc_diagA[efc])
-            newton_args = (h_fq, np.ascontiguousarray(h_qq), np.ascontiguousarray(jq), rows,
-                           np.ascontiguousarray(d.efc_aref[efc]), weights)
-
-        solved = np.zeros(len(efc))  # the rows' forces of the last solve [N]
+            weights = self._keyed(self._row_weights, plain, (ext_sys.system, d, y, lu, piv),
+                                  ext_sys.system, rows.rows, big_y, rows.jq, lu, piv, rows.ratio)
 
         def solve(arc=None):
-            """a, a_q and the rows' force on the rod dofs with the held points moved ``arc``
-            (3H,) [m] beyond J dq (None: not at all): the unconstrained solution, then the
-            contact Newton."""
-            f_q, a = force.copy(), start.copy()
+            """a, a_q and the rows' multipliers (None: no rows) with the held points moved
+            ``arc`` (3H,) [m] beyond J dq (None: not at all): the unconstrained solution, then
+            the contact Newton from it (started from the step's buffers: a_q, and a without
+            touching trees, whose a[:n] is all of it)."""
+            f_q, a = self._aq, self._a if nn == n else start.copy()
+            f_q[:] = force
             if arc is None:
                 lu_solve(lu, piv, f_q)
                 a[:n] = y0 - y @ f_q[c]
@@ -177,16 +186,15 @@ class CoupledStep:
                 f_q[c] -= stiff.jac.T @ (stiff.k_hh @ arc) - s * (k_f.T @ y_arc)
                 lu_solve(lu, piv, f_q)
                 a[:n] = y0 - y_arc - y @ f_q[c]
-            aq = f_q
-            if newton_args is None:
-                return a, aq, ext
-            h_fq, hqq, jq_, rows, aref, weights = newton_args
-            a, aq, lam, _ = newton(ext_sys.system, a, rows, aref, weights, Border(h_fq, hqq, jq_, aq), MAX_ITER, TOL)
-            solved[:] = lam
-            return a, aq, ext + transpose_apply_all(rows, lam, nn)
+            if not solving:
+                return a.copy(), f_q.copy(), None  # (the buffers are the next solve's)
+            a, aq, lam, _ = self._keyed(self._newton, plain, (ext_sys.system, d, a, h_fq, h_qq, f_q),
+                                        ext_sys.system, a, rows.rows, rows.aref, weights,
+                                        Border(h_fq, h_qq, rows.jq, f_q), MAX_ITER, TOL)
+            return a, aq, lam
 
         if not hl.turning:  # held points only translate: no arcs
-            a, aq, f = solve()
+            a, aq, lam = solve()
         else:
             # The held points move on arcs (see _arc), known once a_q is: guessed from the
             # last step's a_q and solved, then solved again with the arc of that solution if
@@ -195,25 +203,49 @@ class CoupledStep:
             # step to step: a 1 g box tumbling as it lands) is no arc to trust: it is left
             # out (measured: with it the 1 g box landing at dt 5e-3 and 1e-2 diverged).
             arc = self._arc(step, stiff.jac, self._aq_last)
-            a, aq, f = solve(arc)
+            a, aq, lam = solve(arc)
             again = self._arc(step, stiff.jac, aq)
             miss = np.max(np.abs(again - arc), initial=0.0)
             if miss > max(self._arc_tol, ARC_SETTLED * np.max(np.abs(again), initial=0.0)):
-                a, aq, f = solve()
+                a, aq, lam = solve()
             elif miss > self._arc_tol:
-                a, aq, f = solve(again)
+                a, aq, lam = solve(again)
             self._aq_last[:] = aq
-        if newton_args is not None or ext.any():
-            self.contact.force[:] = f[:n]
-        if len(efc):  # derods' row forces where MuJoCo's readers look (a held edge's on its holder: none)
-            d.efc_force[efc] = solved
+        if solving:  # and derods' row forces where MuJoCo's readers look (a held edge's on its holder: none)
+            self._row_forces.keyed((d, self.contact.force), (rows, lam, self.contact.force, d.efc_force))
             if own is not None:
                 d.efc_force[:d.nefc][own] = 0.0
+        elif ext.any():
+            self.contact.force[:] = ext[:n]
+        else:
+            self.contact.force[:] = 0.0
         af = a[:n]
         self._limit_strain(step, af, aq, stiff.jac)
         hl._dynamics.write(d, hl.tree, metric, aq)
         ext_sys.write(d, a[n:])
         return af
+
+    def _rows(self, d: mujoco.MjData, ext_sys: WithTrees, own: np.ndarray | None) -> BorderedRows:
+        """MuJoCo's rows of this step split for the solve over the rods' dofs (and the
+        touching trees', ext_sys) bordered by the holders' (:func:`bordered_rows`)."""
+        rest = (SUPPORTED, self._no_rows if own is None else own, ext_sys.local_of_dof, self.border_of_dof,
+                ext_sys.n, self.m, WINDOW)
+        efc = self.contact.rows(d)
+        if own is None and ext_sys.n == self.layout.n:  # the rest: the same objects every step
+            return self._bordered_rows.keyed((d,) + rest, (efc,) + rest)
+        return self._bordered_rows.kernel(efc, *rest)
+
+    @staticmethod
+    def _keyed(bound: Bound, plain: bool, key: tuple, *args):
+        """``bound``'s kernel on args, its compiled function remembered for the key's objects
+        when ``plain`` (:meth:`derods._numba.calls.Bound.keyed`). The key holds the step's
+        system and buffers (the same objects every step) and MuJoCo's data, which stands for
+        the arguments made afresh each step from its rows: :func:`bordered_rows`' bundle,
+        the row weights and Newton's results, arrays that compiled code allocates (C-ordered,
+        of the dtypes its code fixes), so of one type whatever the step."""
+        if plain:
+            return bound.keyed(key, args)
+        return bound.kernel(*args)
 
     def _limit_strain(self, step, af: np.ndarray, aq: np.ndarray, jac: np.ndarray) -> None:
         """The strain limit (:data:`derods.sim.integrators.STRAIN_LIMIT`) on the coupled
@@ -225,13 +257,14 @@ class CoupledStep:
         long, and the box diverged; moving the held points by their holders' inertia
         instead, without their contacts, did not help either.) jac (3H, k): the held
         points' Jacobian: where no held point turns, they move by it exactly."""
-        hl, h = self.holders, step.h
-        self.held_x[:] = step.x
+        hl = self.holders
         if not hl.turning and self._held_are_riding:
-            v_q = step.qvel[hl.dofs] + h * aq[hl._in_tree]
-            self.held_x[hl.held] += (jac @ (h * v_q)).reshape(-1, 3)
-        elif len(self._riding_vertex):
-            self._predict_held(step, aq)
+            holder_steps_into(step.qvel, hl.dofs, aq, hl._in_tree, step.h, self._dq)
+            moved_into(step.x, hl.held, jac @ self._dq, self.held_x)
+        else:
+            self.held_x[:] = step.x
+            if len(self._riding_vertex):
+                self._predict_held(step, aq)
         step.n_projected = step._limit_strain(af, step._touching(), self.held_x)
 
     def _predict_held(self, step, aq: np.ndarray) -> None:

@@ -85,7 +85,6 @@ class ImplicitSystem:
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """A^-1 rhs, rhs shape (n,) or (n, m)."""
-        cols = np.array(np.atleast_2d(rhs.T), dtype=float)  # (m, n), one solve per row
-        for c in cols:
-            _k.sm_solve_into(self.arrays, c)
-        return cols[0] if rhs.ndim == 1 else cols.T
+        out = np.array(rhs, dtype=float, order="C")
+        _k.sm_solve_columns_into(self.arrays, out.reshape(self.n, -1))  # one call for every column
+        return out
