@@ -141,3 +141,14 @@ def limit_strain(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, 
         n_projected += 1
         landing_into(x, xp, place, v, h, v0, v1, a0)
     return n_projected, n_left
+
+
+@nb.njit(cache=True)
+def touching_into(force, inv_mass, free_vertex, weight, out):
+    """out (n_vertices,) <- inv_mass with the free vertices a contact pushes on (force (n,)
+    [N] on their dofs not zero; free_vertex (n / 3,): each free place's vertex) made
+    ``weight`` times lighter."""
+    out[:] = inv_mass
+    for p in range(len(free_vertex)):
+        if force[3 * p] != 0.0 or force[3 * p + 1] != 0.0 or force[3 * p + 2] != 0.0:
+            out[free_vertex[p]] *= weight

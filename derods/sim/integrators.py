@@ -29,7 +29,7 @@ import numpy as np
 from .._numba import coupling as _io
 from .._numba import implicit as _imp
 from .._numba.calls import Bound
-from .._numba.projection import limit_strain, projection_step
+from .._numba.projection import limit_strain, projection_step, touching_into
 from ..step import EndBodies, Frames, RodSet, Terms, evaluate
 from .clamps import Reactions
 from .contact import SUPPORTED, ContactStep, ReferenceCorrection
@@ -313,9 +313,8 @@ class Implicit(Step):
         """Inverse vertex masses with those a contact pushes on made TOUCHING_WEIGHT
         times lighter, so that projecting after the contact solve leaves them close to
         where it put them."""
-        pushed = np.any(self.contact.force.reshape(-1, 3) != 0.0, axis=1)
-        inv_mass = self.inv_mass.copy()
-        inv_mass[self.layout.free_vertex[pushed]] *= TOUCHING_WEIGHT
+        inv_mass = np.empty_like(self.inv_mass)
+        touching_into(self.contact.force, self.inv_mass, self.layout.free_vertex, TOUCHING_WEIGHT, inv_mass)
         return inv_mass
 
     def _limit_strain(self, a: np.ndarray, inv_mass: np.ndarray | None = None,
