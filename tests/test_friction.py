@@ -6,17 +6,19 @@ creeping, and slides with acceleration g (sin theta - mu cos theta) beyond. coss
 capstan asks the same of a heavy rope over a cylinder (below the holding overhang it must
 move < 1 mm in 2 s); this is the smallest case that shows it.
 
-Without anchors (``ContactParams(static_friction=False)``, the default: MuJoCo's soft
-friction alone, re-solved in the implicit metric) the rope creeps: 7.4 mm/s on a 10 degree incline at mu =
+Without anchors (``ContactParams(static_friction=False)``: MuJoCo's soft friction alone,
+re-solved in the implicit metric) the rope creeps: 7.4 mm/s on a 10 degree incline at mu =
 0.3 (E = 3e5 Pa), 1.4 mm/s at E = 1e9. Two causes, measured: inside the friction cone both
 rows of a pyramid pair are active and their friction is a damper, f_t = 2 mu^2 D (-B v_t -
 a_t), with no tangential position term, so a loaded contact slides at a steady speed; and
 the pair across the slope (its rows see the same penetration) carries two fifths of the
 normal force, so friction along the slope topped out at tan(10 deg) of it against mu =
-0.3. derods.sim.friction anchors each sticking contact where it began and gives its rows
-the slip since (MuJoCo's own stiffness K imp along the tangents): measured 0.001 mm/s at
-E = 3e5 and 0 at 1e9 on 10 degrees, 0.0025 and 0 on 15 degrees (0.89 of the friction
-angle); at 20 and 25 degrees it slides within 0.5 % of Coulomb's acceleration.
+0.3. derods.sim.friction (``ContactParams(static_friction=True)``) anchors each resting
+contact where it began and
+gives its rows the slip since (MuJoCo's own stiffness K imp along the tangents): measured
+0.0012 mm/s at E = 3e5 and 0 at 1e9 on 10 degrees, 0.0028 and 0 on 15 degrees (0.89 of
+the friction angle); at 20 and 25 degrees it slides within 0.5 % of Coulomb's
+acceleration.
 """
 
 from __future__ import annotations
@@ -78,7 +80,7 @@ def test_a_rope_on_an_incline_below_its_friction_angle_holds(young, tilt, mode):
 
 
 def test_without_anchors_the_rope_creeps():
-    """The same rope (E = 3e5 Pa, 10 degrees) at the default ``static_friction=False``:
+    """The same rope (E = 3e5 Pa, 10 degrees) with ``static_friction=False``, the default:
     MuJoCo's soft friction, a damper inside the cone, lets it creep 7.4 mm/s (measured): the
     anchors are what holds it."""
     world = _rope_on_incline(3e5)

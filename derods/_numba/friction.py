@@ -50,7 +50,8 @@ class Anchors(NamedTuple):
     MuJoCo's ``data.contact`` this step; body (k, 2, 2), weight (k, 2, 2), local (k, 2, 2,
     3) [m]: each side's material point as up to two terms, weight times (a body's position
     plus the point in its frame); start (k, 2, 3) [m]: where each side's point was when
-    the contact was anchored; slip (k, 3) [m]: side 1's point relative to side 0's since."""
+    the contact was anchored; slip (k, 3) [m]: side 1's point relative to side 0's since;
+    age (k,): the steps it has been there without sliding."""
 
     keys: np.ndarray
     contact: np.ndarray
@@ -59,13 +60,14 @@ class Anchors(NamedTuple):
     local: np.ndarray
     start: np.ndarray
     slip: np.ndarray
+    age: np.ndarray
 
 
 @nb.njit(cache=True)
 def no_anchors():
     """No anchored contact."""
     return Anchors(np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros((0, 2, 2), dtype=np.int64),
-                   np.zeros((0, 2, 2)), np.zeros((0, 2, 2, 3)), np.zeros((0, 2, 3)), np.zeros((0, 3)))
+                   np.zeros((0, 2, 2)), np.zeros((0, 2, 2, 3)), np.zeros((0, 2, 3)), np.zeros((0, 3)), np.zeros(0, dtype=np.int64))
 
 
 @nb.njit(cache=True)
@@ -131,14 +133,15 @@ def _point(xpos, xmat, body, weight, local, q, s, out):
 
 
 @nb.njit(cache=True)
-def anchor(con, tables, last, efc_type, efc_kbip, efc_aref, xpos, xmat, pyramidal, max_slip):
+def anchor(con, tables, last, efc_type, efc_kbip, efc_aref, xpos, xmat, pyramidal, max_slip, min_age):
     """This step's anchors (:class:`Anchors`, returned) from the last step's ``last``: every
     pyramidal contact of a rod (a flex side, dim >= 3) keeps its anchor if it was there
     (same two sides) and slipped less than ``max_slip`` [m] since the last step (else it
-    slides, and is anchored again where it is, as a new one is); and its friction pairs'
-    reference accelerations (``efc_aref``, in place) get the slip since the anchor: for
-    pair j (rows J_n +- mu_j J_tj), aref -= +-K imp mu_j (s . t_j), s the side 1 point's
-    motion relative to the side 0 point's (K, imp from ``efc_kbip``)."""
+    slides, and is anchored again where it is, as a new one is); once it has been there
+    ``min_age`` steps (until then it is anchored again where it is every step), its
+    friction pairs' reference accelerations (``efc_aref``, in place) get the slip since the
+    anchor: for pair j (rows J_n +- mu_j J_tj), aref -= +-K imp mu_j (s . t_j), s the side 1
+    point's motion relative to the side 0 point's (K, imp from ``efc_kbip``)."""
     n = con.count
     geom, flex, elem, vert, pos = con.geom, con.flex, con.elem, con.vert, con.pos
     n_geom, n_elem, elem_adr, vert_adr = tables.n_geom, tables.n_elem, tables.elem_adr, tables.vert_adr
@@ -161,8 +164,9 @@ def anchor(con, tables, last, efc_type, efc_kbip, efc_aref, xpos, xmat, pyramida
     keys, which = keys[:k][order], which[:k][order]
     body, weight = np.empty((k, 2, 2), dtype=np.int64), np.empty((k, 2, 2))
     local, start, slip = np.empty((k, 2, 2, 3)), np.empty((k, 2, 3)), np.zeros((k, 3))
+    age = np.zeros(k, dtype=np.int64)
     last_keys, last_body, last_weight, last_local, last_start = last.keys, last.body, last.weight, last.local, last.start
-    last_slip = last.slip
+    last_slip, last_age = last.slip, last.age
     frame, friction, efc_address = con.frame, con.friction, con.efc_address
     p0 = np.empty(3)
     p1 = np.empty(3)
@@ -173,16 +177,22 @@ def anchor(con, tables, last, efc_type, efc_kbip, efc_aref, xpos, xmat, pyramida
         while at < n_last and last_keys[at] < keys[q]:
             at += 1
         if at < n_last and last_keys[at] == keys[q]:
-            body[q] = last_body[at]
-            weight[q] = last_weight[at]
-            local[q] = last_local[at]
-            start[q] = last_start[at]
+            for s in range(2):  # element by element: numba's slice copies cost ~0.1 us each
+                for t in range(2):
+                    body[q, s, t] = last_body[at, s, t]
+                    weight[q, s, t] = last_weight[at, s, t]
+                    for i in range(3):
+                        local[q, s, t, i] = last_local[at, s, t, i]
+                for i in range(3):
+                    start[q, s, i] = last_start[at, s, i]
+            age[q] = last_age[at] + 1
         else:
             for s in range(2):
                 _new_side(geom[c, s], flex[c, s], elem[c, s], vert[c, s], pos[c], geom_body, elem_adr, elem_bodies,
                           vert_adr, vert_body, xpos, xmat, body[q, s], weight[q, s], local[q, s])
                 _point(xpos, xmat, body, weight, local, q, s, p0)
-                start[q, s] = p0
+                for i in range(3):
+                    start[q, s, i] = p0[i]
             continue  # anchored now: no slip yet
         _point(xpos, xmat, body, weight, local, q, 0, p0)
         _point(xpos, xmat, body, weight, local, q, 1, p1)
@@ -190,10 +200,15 @@ def anchor(con, tables, last, efc_type, efc_kbip, efc_aref, xpos, xmat, pyramida
         for i in range(3):
             slip[q, i] = (p1[i] - start[q, 1, i]) - (p0[i] - start[q, 0, i])
             moved += (slip[q, i] - last_slip[at, i]) ** 2
-        if moved > max_slip * max_slip:  # sliding: anchored again, no spring this step
-            start[q, 0] = p0
-            start[q, 1] = p1
-            slip[q] = 0.0
+        if moved > max_slip * max_slip or age[q] < min_age:
+            # sliding (then its age starts again), or not yet resting: anchored again where
+            # it is, no spring this step
+            if moved > max_slip * max_slip:
+                age[q] = 0
+            for i in range(3):
+                start[q, 0, i] = p0[i]
+                start[q, 1, i] = p1[i]
+                slip[q, i] = 0.0
             continue
         adr = efc_address[c]
         kimp = efc_kbip[adr, 0] * efc_kbip[adr, 2]
@@ -204,7 +219,7 @@ def anchor(con, tables, last, efc_type, efc_kbip, efc_aref, xpos, xmat, pyramida
             shift = kimp * friction[c, j - 1] * s_j
             efc_aref[adr + 2 * (j - 1)] -= shift
             efc_aref[adr + 2 * (j - 1) + 1] += shift
-    return Anchors(keys, which, body, weight, local, start, slip)
+    return Anchors(keys, which, body, weight, local, start, slip, age)
 
 
 @nb.njit(cache=True)
@@ -216,6 +231,7 @@ def reanchor_slipping(anchors, dim, efc_address, efc_force, xpos, xmat, slip_tol
     k = len(anchors.keys)
     start = anchors.start.copy()
     slip = anchors.slip.copy()
+    age = anchors.age.copy()
     contact, body, weight, local = anchors.contact, anchors.body, anchors.weight, anchors.local
     p = np.empty(3)
     for q in range(k):
@@ -230,6 +246,8 @@ def reanchor_slipping(anchors, dim, efc_address, efc_force, xpos, xmat, slip_tol
         if total > 0.0 and spent >= (1.0 - slip_tol) * total:
             for s in range(2):
                 _point(xpos, xmat, body, weight, local, q, s, p)
-                start[q, s] = p
-            slip[q] = 0.0
-    return Anchors(anchors.keys, contact, body, weight, local, start, slip)
+                for i in range(3):
+                    start[q, s, i] = p[i]
+                    slip[q, i] = 0.0
+            age[q] = 0
+    return Anchors(anchors.keys, contact, body, weight, local, start, slip, age)

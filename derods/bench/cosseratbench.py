@@ -21,9 +21,8 @@ Numerics, the same for every experiment (see :meth:`DerodsSolver.settings`):
   derods' rods do not shear;
 - contact: MuJoCo's detection, derods' implicit contact solve; Coulomb friction, the
   larger coefficient of the two things touching (MuJoCo's rule, the suite's too), with
-  static friction on (``ContactParams(static_friction=True)``: sticking contacts
-  anchored, so a rope below its friction limit holds instead of creeping; the step is at
-  most 1 ms, where the anchors' ledge-dragging hops of dt = 1e-2 do not arise).
+  static friction on (``ContactParams(static_friction=True)``: resting contacts anchored,
+  so a rope below its friction limit holds instead of creeping).
 
 Discretization. A discrete clamp holds a whole edge and acts where that edge's
 material frame sits, at its middle (:func:`derods.shapes.cantilever`); so a clamped

@@ -32,15 +32,14 @@ class ContactParams:
     move by their own dofs MuJoCo solves the rows, and reads a margin as a skin
     the rod rests on. holder_contact: a held edge collides with the body (with dofs)
     that holds it; off by default, as MuJoCo never collides a body with its parent
-    or children. static_friction: a rod's contacts that stick are anchored where they
-    began to (:mod:`derods.sim.friction`), so that below the Coulomb threshold they
-    hold instead of creeping (MuJoCo's soft friction is a damper there: a rope on a
-    10 degree incline at mu = 0.3 crept 7.4 mm/s, anchored 0.001 mm/s; a heavy rope
-    over a capstan slid off, anchored it holds). In the modes whose contacts derods
-    solves (implicit, alpha, and rods held by bodies with dofs); off by default: with
-    MuJoCo's pyramidal rows an anchor pulls friction out of extra normal force, and
-    cables dragged over a ledge at dt = 1e-2 hopped and dipped deeper (11 of 14 sweep
-    cases past r against 5 of 14), and a step with contacts costs ~20 us more.
+    or children. static_friction: a rod's contacts that have rested a few steps are
+    anchored where they began (:mod:`derods.sim.friction`), so that below the Coulomb
+    threshold they hold instead of creeping (MuJoCo's soft friction is a damper there: a
+    rope on a 10 degree incline at mu = 0.3 crept 7.4 mm/s, anchored 0.001 mm/s; a heavy
+    rope over a capstan slid off, anchored it holds), in the modes whose contacts derods
+    solves (implicit, alpha, and rods held by bodies with dofs). Off by default for its
+    cost, ~20-25 us per step with contacts (bench_world: a rod on the box edge 0.58 -> 0.78
+    of the flex's step, a lying rod 0.81 -> 1.04): MuJoCo's soft friction alone.
     """
 
     friction: float = 1.0

@@ -27,15 +27,21 @@ its two sides (geom, or flex element / vertex); one that is gone is forgotten. M
 0.001 / 0.000 mm/s, 15 degrees (0.89 of the friction angle) 0.0025 / 0.000; 20 degrees
 (above it) slides as before.
 
-MuJoCo's own solver has run by then (for rows derods leaves to it, and in the modes whose
-contacts it solves): the anchors act in derods' solve only. Off by default
-(``ContactParams(static_friction=True)`` turns them on): with pyramidal rows a sticking
-contact's friction comes partly out of extra normal force (the anchor loads one row of a
-pair, which pushes along n + mu t), so where contacts stick and let go quickly, a cable
-dragged over a ledge's edge at dt = 1e-2, it hopped and landed deeper (the held-rods
-sweep: 11 of its 14 ledge cases at dt 1e-2 past the rod's radius, against 5); elliptic
-cones in derods' solve are the fix that would let them be the default. Contacts sliding
-faster than SLIDING_SPEED are anchored again every step (kinetic friction as without).
+A contact takes its anchor's spring only once it has lasted RESTING_STEPS steps without
+sliding: anchored at once, the short contacts of a cable hopping as it is dragged over a
+ledge's edge at dt = 1e-2 stuck and snapped, and it dipped deeper (the held-rods sweep:
+11 of its 14 ledge cases at dt 1e-2 past the rod's radius, against 5 without anchors;
+with the wait, every case of the sweep is judged as without anchors). Contacts sliding
+faster than SLIDING_SPEED, or whose solved force lies on the pyramid's boundary, are
+anchored again (kinetic friction as without anchors: a rope beyond its friction angle
+slides at Coulomb's rate, within 0.5 %). MuJoCo's own solver has run by then (for rows
+derods leaves to it, and in the modes whose contacts it solves): the anchors act in
+derods' solve only. ``ContactParams(static_friction=True)`` turns them on; they are off
+by default for their cost (~20-25 us per step with contacts, most of it fixed: reading
+MuJoCo's contacts and boxing the new anchors; see ContactParams). With
+pyramidal rows a sticking contact's friction still comes partly out of extra normal
+force (the anchor loads one row of a pair, which pushes along n + mu t); elliptic cones
+in derods' solve would remove that.
 """
 
 from __future__ import annotations
@@ -50,8 +56,10 @@ _PYRAMIDAL = int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL)
 SLIP_TOL = 1e-6
 #: A contact whose sides moved apart faster than this [m/s] over the last step slides.
 SLIDING_SPEED = 5e-2
+#: Steps a contact must last before its anchor holds it (see the module docstring).
+RESTING_STEPS = 10
 
-__all__ = ["Anchors", "StaticFriction", "SLIP_TOL"]
+__all__ = ["Anchors", "StaticFriction", "SLIP_TOL", "SLIDING_SPEED", "RESTING_STEPS"]
 
 
 class StaticFriction:
@@ -66,6 +74,7 @@ class StaticFriction:
         self.model = model
         self.enabled = bool(np.any(model.flex_dim == 1)) if model.nflex else False
         self.state = no_anchors()
+        self._contacts = None
         if not self.enabled:
             return
         elem_bodies = np.full((model.nflexelem + 1, 2), 0, dtype=np.int64)
@@ -95,7 +104,8 @@ class StaticFriction:
         contacts = FlexContacts(d.ncon, con.geom, con.flex, con.elem, con.vert, con.pos, con.frame, con.dim,
                                 con.friction, con.efc_address)
         self.state = anchor(contacts, self.tables, self.state, d.efc_type, d.efc_KBIP, d.efc_aref, d.xpos, d.xmat,
-                            _PYRAMIDAL, SLIDING_SPEED * self.model.opt.timestep)
+                            _PYRAMIDAL, SLIDING_SPEED * self.model.opt.timestep, RESTING_STEPS)
+        self._contacts = contacts  # the step's contacts, for slipped
 
     def slipped(self, data: mujoco.MjData) -> None:
         """Anchor again where they are the contacts that slip: whose solved force lies on
@@ -106,5 +116,5 @@ class StaticFriction:
         st = self.state
         if not len(st.keys):
             return
-        con = data.contact
+        con = self._contacts
         self.state = reanchor_slipping(st, con.dim, con.efc_address, data.efc_force, data.xpos, data.xmat, SLIP_TOL)
