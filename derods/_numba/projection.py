@@ -7,15 +7,20 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from .banded import cholesky_into, solve_into
+from .banded import cholesky_ok, solve_into
+from .parallel import compiled_twice
+
+#: What :func:`project_rod` returns when its system is not positive definite.
+NOT_POSITIVE = -2
 
 
 @nb.njit(cache=True)
 def project_rod(x, inv_mass, rest_len, tol, max_iter):
     """Project x (n_vertices, 3) in place, moving vertex j by inv_mass[j] (0: held);
-    returns the iterations used, or -1 (with the last strain left in x's distance from
-    the manifold) if it did not converge. Edges between two held vertices keep their
-    length."""
+    returns the iterations used, -1 (with the last strain left in x's distance from
+    the manifold) if it did not converge, or :data:`NOT_POSITIVE` if an iteration's
+    system was not positive definite (a state gone wild; returned, not raised, so that a
+    parallel loop can report it). Edges between two held vertices keep their length."""
     nv = x.shape[0]
     lo, hi = -1, -1
     for j in range(nv - 1):
@@ -56,7 +61,8 @@ def project_rod(x, inv_mass, rest_len, tol, max_iter):
                              + gvec[j, 2] * gvec[j + 1, 2]) * w1
             else:
                 ab[1, j] = 0.0
-        cholesky_into(ab, lt)
+        if not cholesky_ok(ab, lt):
+            return NOT_POSITIVE
         solve_into(lt, c, 0, m)  # c <- dlambda
         for j in range(m):
             for a in range(3):
@@ -69,8 +75,15 @@ def project_rod(x, inv_mass, rest_len, tol, max_iter):
 @nb.njit(cache=True)
 def predict_into(x, place, v, a0, h, xp):
     """xp (n_vertices, 3) <- x + h (v + h a0) for the free vertices (place >= 0), x elsewhere."""
-    xp[:] = x
-    for vtx in range(x.shape[0]):
+    predict_range(x, place, v, a0, h, xp, 0, x.shape[0])
+
+
+@nb.njit(cache=True)
+def predict_range(x, place, v, a0, h, xp, lo, hi):
+    """:func:`predict_into` for the vertices lo .. hi - 1."""
+    for vtx in range(lo, hi):
+        for a in range(3):
+            xp[vtx, a] = x[vtx, a]
         p = place[vtx]
         if p >= 0:
             for a in range(3):
@@ -99,14 +112,17 @@ def projection_step(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, tol, m
     predict_into(x, place, v, a0, h, xp)
     for i in range(len(v_off) - 1):
         v0, v1 = v_off[i], v_off[i + 1]
-        if project_rod(xp[v0:v1], inv_mass[v0:v1], rest_len[e_off[i]:e_off[i + 1]], tol, max_iter) < 0:
+        status = project_rod(xp[v0:v1], inv_mass[v0:v1], rest_len[e_off[i]:e_off[i + 1]], tol, max_iter)
+        if status == NOT_POSITIVE:
+            raise ValueError("matrix is not positive definite")
+        if status < 0:
             return i
     landing_into(x, xp, place, v, h, 0, x.shape[0], accel)
     return -1
 
 
-@nb.njit(cache=True)
-def limit_strain(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, limit, tol, max_iter, xp, held_x):
+def limit_strain(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, limit, tol, max_iter, xp, held_x,
+                 chunks):
     """Strain limiting of the implicit step: predict x + h (v + h a0) for the free
     vertices and held_x (n_vertices, 3) for the held ones (where their bodies take them;
     x for the world's); every rod flagged in ``limited`` (n_rods,) whose predicted edge strain
@@ -114,15 +130,43 @@ def limit_strain(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, 
     a0 (n,) [m/s^2] replaced by the acceleration that lands there. A rod the projection
     cannot bring there in ``max_iter`` iterations (held taut between pins: no point of
     the constraint set is near) keeps its a0: the limit is a best effort, not a
-    constraint. x, xp (n_vertices, 3): positions now and (scratch) predicted. Returns
-    (rods projected, rods left as they were)."""
-    predict_into(x, place, v, a0, h, xp)
-    for vtx in range(x.shape[0]):
+    constraint. x, xp (n_vertices, 3): positions now and (scratch) predicted. chunks
+    (n_chunks + 1,): the rods in runs (:class:`derods._numba.parallel.Split`'s ``rods``),
+    one a thread in the parallel variant. Returns (rods projected, rods left as they
+    were); raises ValueError if a projection's system is not positive definite."""
+    n_chunks = len(chunks) - 1
+    counts = np.empty((n_chunks, 3), dtype=np.int64)  # per chunk: projected, left, not positive definite
+    settings = (h, limit, tol, max_iter)
+    for c in nb.prange(n_chunks):
+        limit_range(x, v_off, e_off, rest_len, inv_mass, place, v, a0, limited, settings, xp, held_x, chunks[c],
+                    chunks[c + 1], counts[c])
+    n_projected, n_left = 0, 0
+    for c in range(n_chunks):
+        if counts[c, 2]:
+            raise ValueError("matrix is not positive definite")
+        n_projected += counts[c, 0]
+        n_left += counts[c, 1]
+    return n_projected, n_left
+
+
+#: The strain limit compiled for one chunk of rods, and for many chunks run on numba's threads.
+limit_strain, limit_strain_parallel = compiled_twice(limit_strain)
+
+
+@nb.njit(cache=True)
+def limit_range(x, v_off, e_off, rest_len, inv_mass, place, v, a0, limited, settings, xp, held_x, r0, r1, counts):
+    """:func:`limit_strain` for rods r0 .. r1 - 1, settings = (h, limit, tol, max_iter):
+    counts (3,) <- rods projected, rods left, and 1 (the rest of the rods left undone)
+    where a projection's system is not positive definite, else 0."""
+    h, limit, tol, max_iter = settings
+    counts[:] = 0
+    lo, hi = v_off[r0], v_off[r1]
+    predict_range(x, place, v, a0, h, xp, lo, hi)
+    for vtx in range(lo, hi):
         if place[vtx] < 0:
             for a in range(3):
                 xp[vtx, a] = held_x[vtx, a]
-    n_projected, n_left = 0, 0
-    for i in range(len(v_off) - 1):
+    for i in range(r0, r1):
         if not limited[i]:
             continue
         v0, v1 = v_off[i], v_off[i + 1]
@@ -135,9 +179,12 @@ def limit_strain(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, 
             worst = max(worst, abs(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) / rest_len[e0 + j] - 1.0))
         if worst <= limit:
             continue
-        if project_rod(xp[v0:v1], inv_mass[v0:v1], rest_len[e0:e_off[i + 1]], tol, max_iter) < 0:
-            n_left += 1
+        status = project_rod(xp[v0:v1], inv_mass[v0:v1], rest_len[e0:e_off[i + 1]], tol, max_iter)
+        if status == NOT_POSITIVE:
+            counts[2] = 1
+            return
+        if status < 0:
+            counts[1] += 1
             continue
-        n_projected += 1
+        counts[0] += 1
         landing_into(x, xp, place, v, h, v0, v1, a0)
-    return n_projected, n_left

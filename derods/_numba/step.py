@@ -32,6 +32,7 @@ import numpy as np
 from .material import material_rod
 from .rod_geometry import Scratch, add_joint_hessian, curvature_binormal, edges, joint_stencil, reference_twist
 from .rod_geometry import turn_clamps
+from .parallel import compiled_twice
 
 
 @nb.njit(cache=True)
@@ -118,23 +119,43 @@ def isotropic_joints(rods, i, t, u, theta, theta_first, theta_last, place, grad,
     return energy, lam, coef
 
 
-@nb.njit(cache=True)
-def rods_step(rods, ends, frames, x, xmat, place, bands, band_of_rod, out):
+def rods_step(rods, ends, frames, x, xmat, place, bands, band_of_rod, out, chunks):
     """Every rod of a set, laid end to end: rods (:class:`derods.step.RodSet`), their clamps
     on moving bodies ends (:class:`derods.step.EndBodies`), their state frames
     (:class:`derods.step.Frames`: u, t, theta (n_edges, ...) transported and solved in
     place; theta_end (n_rods, 2) [rad], the unwrapped angles of clamps on moving bodies,
     updated). In: positions x (n_vertices, 3) [m]; xmat (n_bodies, 9), MuJoCo's body
     orientations. Out (:class:`derods.step.Terms`): grad (n_vertices, 3) [N]; bands
-    (n_bands, rows, n_dofs), lower bands of the PSD Hessian [N/m], zeroed here first: rod
-    i adds to bands[band_of_rod[i]] at its vertices' places ``place`` (n_vertices,) (one
-    band for all rods in a world; one per rod for :meth:`derods.Rod.step_terms`); g_tw
+    (n_bands, rows, n_dofs), lower bands of the PSD Hessian [N/m]: rod i zeroes, then adds
+    to, the columns of its vertices' places ``place`` (n_vertices,) in bands[band_of_rod[i]]
+    (one band for all rods in a world; one per rod for :meth:`derods.Rod.step_terms`); a
+    column that is no vertex's place is left as it is (zero: nothing writes it); g_tw
     (n_vertices, 3) [1/m], the reduced twist term's direction (zero for a rod of kind 2);
     energy, lam, coef, strain per rod; end_moment (n_rods, 2) [N m], dE/dtheta of each
     rod's first and last edge. kind: 1 isotropic and naturally straight, 2 anisotropic or
-    naturally curved (Newton twist solve). Returns the first rod whose largest |strain| is
-    not finite or exceeds ``out.strain`` on entry, else -1 (out.strain (n_rods,): limit
-    in, value out)."""
+    naturally curved (Newton twist solve). chunks (n_chunks + 1,): the rods in runs
+    (:class:`derods._numba.parallel.Split`'s ``rods``), one a thread in the parallel
+    variant; each rod writes only its own slices and its own places of a band. Returns
+    the first rod whose largest |strain| is not finite or exceeds ``out.strain`` on
+    entry, else -1 (out.strain (n_rods,): limit in, value out)."""
+    n_chunks = len(chunks) - 1
+    bad = np.empty(n_chunks, dtype=np.int64)
+    for c in nb.prange(n_chunks):
+        bad[c] = rods_range(rods, ends, frames, x, xmat, place, bands, band_of_rod, out, chunks[c], chunks[c + 1])
+    for c in range(n_chunks):
+        if bad[c] >= 0:
+            return bad[c]
+    return -1
+
+
+#: The rod step compiled for one chunk of rods, and for many chunks run on numba's threads.
+rods_step, rods_step_parallel = compiled_twice(rods_step)
+
+
+@nb.njit(cache=True)
+def rods_range(rods, ends, frames, x, xmat, place, bands, band_of_rod, out, r0, r1):
+    """:func:`rods_step` for rods r0 .. r1 - 1, with scratch arrays of their own: the first
+    of them strained beyond ``out.strain`` (or not finite), else -1."""
     # The bundles' fields read once: a field read in the loop costs a reference count per rod.
     v_off, e_off, rest_len, ks, kind, closed = rods.v_off, rods.e_off, rods.rest_len, rods.ks, rods.kind, rods.closed
     clamped, theta_first, theta_last = rods.clamped, rods.theta_first, rods.theta_last
@@ -142,19 +163,25 @@ def rods_step(rods, ends, frames, x, xmat, place, bands, band_of_rod, out):
     clamp_body, clamp_dir = ends.body, ends.director
     grad, g_tw, strain, energy, lam, coef, end_moment = out.grad, out.g_tw, out.strain, out.energy, out.lam, out.coef, \
         out.end_moment
-    n_rods = len(v_off) - 1
     max_nv = 0
-    for i in range(n_rods):
+    for i in range(r0, r1):
         max_nv = max(max_nv, v_off[i + 1] - v_off[i])
     work = Scratch(np.empty(max_nv), np.empty(max_nv), np.empty((max_nv, 3)), np.empty((3, 3)), np.empty((3, 3)),
                    np.empty((6, 6)), np.empty((6, 3, 3)))
     edge_len, blocks = work.edge_len, work.blocks
-    bands[:] = 0.0
     first_bad = -1
-    for i in range(n_rods):
+    for i in range(r0, r1):
         v0, v1 = v_off[i], v_off[i + 1]
         e0, e1 = e_off[i], e_off[i + 1]
         ab = bands[band_of_rod[i]]
+        # The rod's own columns, zeroed here rather than the whole band up front: a chunk
+        # of rods on another thread writes the others.
+        for vtx in range(v0, v1):
+            p = place[vtx]
+            if p >= 0:
+                for d in range(ab.shape[0]):
+                    for c in range(3 * p, 3 * p + 3):
+                        ab[d, c] = 0.0
         xi, ui, ti, thi = x[v0:v1], u[e0:e1], t[e0:e1], theta[e0:e1]
         e_s, st = edges(xi, ui, ti, rest_len[e0:e1], ks[i], closed[i], place[v0:v1], grad[v0:v1], ab, edge_len,
                         blocks)
