@@ -1,5 +1,5 @@
-"""derods/_numba/parallel.py: a world stepped with its rods in chunks on numba's threads
-gives the serial step's positions to the bit, and a world takes threads only when large.
+"""derods/_numba/parallel.py: a world stepped with its rods in chunks on threads gives the
+serial step's positions to the bit, and a world takes threads only when large.
 
 Each chunk runs its rods in order doing for them what one chunk of all rods does (their
 terms, their block of the implicit matrix and its solves, their strain limit), so no
@@ -61,8 +61,8 @@ def _run(n_chunks: int, mode: str) -> np.ndarray:
 
 @pytest.mark.parametrize("mode", ["implicit", "alpha", "projection"])
 def test_parallel_step_gives_the_serial_positions_to_the_bit(mode):
-    """Two and three chunks (more than this machine may have threads: numba runs them all)
-    against one, over steps with contacts, strain limiting, twist terms and Newton twist
+    """Two and three chunks (more than this machine may have threads: they queue) against
+    one, over steps with contacts, strain limiting, twist terms and Newton twist
     solves, in every mode that takes the parallel kernels."""
     serial = _run(1, mode)
     for n_chunks in (2, 3):
@@ -95,14 +95,14 @@ def test_a_world_takes_threads_only_when_each_chunk_is_large(monkeypatch):
     assert not plan(4, 32).parallel
     big = plan(1000, 32)
     assert big.parallel and np.array_equal(big.rods, [0, 500, 1000])
-    monkeypatch.setattr(parallel, "threads", lambda: 1)  # numba.set_num_threads(1)
+    monkeypatch.setattr(parallel, "threads", lambda: 1)  # NUMBA_NUM_THREADS=1
     assert not plan(1000, 32).parallel
 
 
-def test_a_system_not_positive_definite_is_reported_from_the_parallel_solve():
-    """An exception raised inside numba's parallel loop would reach Python as a SystemError;
-    the parallel kernels report per chunk and raise the serial kernel's ValueError, which the
-    step turns into its diagnosis."""
+def test_a_system_not_positive_definite_is_reported_from_a_worker_thread():
+    """The last chunk's solve, on a worker thread, raises the serial kernel's ValueError in
+    the stepping thread (once the other chunks are done), which the step turns into its
+    diagnosis."""
     world = _many_rods()
     st = world._step
     st.use_split(parallel.split(st.rods.v_off, st.layout.dof_off, st.rod_tw, 3))

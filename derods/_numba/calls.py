@@ -11,7 +11,6 @@ same argument objects have the same types: :class:`Bound` resolves the compiled 
 for them once and then calls it directly while they come back; any other arguments go
 through numba's dispatcher as usual. The contact stage's rows are views of MuJoCo's data
 made afresh each step, typed by MuJoCo: it keys them by the data (:meth:`Bound.keyed`).
-A parallel kernel's calls hold a lock (:func:`bound`, :data:`derods._numba.parallel.LOCK`).
 """
 
 from __future__ import annotations
@@ -25,17 +24,13 @@ class Bound:
     """``kernel(*args)`` (a numba dispatcher) with its compiled function remembered for the
     argument objects of the calls that repeat them (held, so their ids stay theirs)."""
 
-    def __init__(self, kernel, lock=None):
+    def __init__(self, kernel):
         self.kernel = kernel
-        self.lock = lock  # held during each call, if given
         self._resolved = {}  # ids of the arguments -> (the arguments, the compiled function)
         self._seen = set()  # ids of recent calls' arguments, resolved when they come again
 
     def __call__(self, *args):
-        if self.lock is None:
-            return self.keyed(args, args)
-        with self.lock:
-            return self.keyed(args, args)
+        return self.keyed(args, args)
 
     def keyed(self, key, args):
         """``kernel(*args)``, its compiled function remembered for the objects of ``key``
@@ -57,14 +52,3 @@ class Bound:
             self._seen.clear()
         self._seen.add(ids)
         return self.kernel(*args)
-
-
-def bound(serial, parallel, use_parallel: bool) -> Bound:
-    """A :class:`Bound` of a kernel's ``serial`` or ``parallel`` variant
-    (:func:`derods._numba.parallel.compiled_twice`); the parallel one's calls hold
-    :data:`derods._numba.parallel.LOCK`."""
-    if not use_parallel:
-        return Bound(serial)
-    from .parallel import LOCK
-
-    return Bound(parallel, LOCK)

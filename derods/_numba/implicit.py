@@ -16,7 +16,6 @@ import numba as nb
 import numpy as np
 
 from .banded import cholesky_range, matvec_range, solve_into
-from .parallel import compiled_twice
 
 
 class System(NamedTuple):
@@ -172,6 +171,7 @@ def twist_terms_range(system, terms, places, lo, hi, t0, t1):
             g[3 * p + a] = g_tw[v, a]
 
 
+@nb.njit(cache=True, nogil=True)
 def unconstrained_step(system, terms, places, params, qvel, xfrc_applied, v, other, rhs, kv, a0, split):
     """The implicit step without contact, for all rods: assemble and factor A, solve
     A a0 = F - a_m M v - (b + h) K v with F = -grad + gravity + the user's xfrc_applied.
@@ -183,31 +183,23 @@ def unconstrained_step(system, terms, places, params, qvel, xfrc_applied, v, oth
     force), a0 (n,) [m/s^2]; rhs, kv are scratch. split
     (:class:`derods._numba.parallel.Split`): A is block diagonal over rods, so each chunk of
     whole rods is solved on its own (:func:`unconstrained_chunk`), each rod's arithmetic
-    as in one solve of them all. Raises ValueError if A is not positive definite.
+    as in one solve of them all; a call may take some of the chunks, and calls for the
+    others run at once on other threads (it releases the GIL). Raises ValueError if A is
+    not positive definite.
     """
     h, mass_damping, stiffness_damping = params.h, params.mass_damping, params.stiffness_damping
     system.weights[0] = 1.0 + h * mass_damping
     system.weights[1] = h * h + h * stiffness_damping
-    n_chunks = len(split.dofs) - 1
-    ok = np.empty(n_chunks, dtype=np.bool_)
-    for c in nb.prange(n_chunks):
-        ok[c] = unconstrained_chunk(system, terms, places, params, qvel, xfrc_applied, v, other, rhs, kv, a0, split,
-                                    c)
-    for c in range(n_chunks):
-        if not ok[c]:
+    for c in range(len(split.dofs) - 1):
+        if not unconstrained_chunk(system, terms, places, params, qvel, xfrc_applied, v, other, rhs, kv, a0, split, c):
             raise ValueError("matrix is not positive definite")
-
-
-#: The step compiled for one chunk of rods, and for many chunks run on numba's threads.
-unconstrained_step, unconstrained_step_parallel = compiled_twice(unconstrained_step)
 
 
 @nb.njit(cache=True)
 def unconstrained_chunk(system, terms, places, params, qvel, xfrc_applied, v, other, rhs, kv, a0, split, c):
     """:func:`unconstrained_step` on chunk c of ``split``: its dofs [lo, hi) and twist terms
     t0 .. t1 - 1, with A's weights already in ``system.weights``. False (the rest of the
-    chunk left undone) if A is not positive definite there: an exception raised in a
-    parallel loop would not reach the caller as itself."""
+    chunk left undone) if A is not positive definite there."""
     h, mass_damping, stiffness_damping, gravity = params
     free_vertex, free_body, dofs = places.free_vertex, places.free_body, places.dofs
     mass, grad = system.mass, terms.grad

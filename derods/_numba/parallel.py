@@ -1,49 +1,46 @@
-"""Rods in parallel: the per-rod kernels of a step, run on numba's threads for a world of
-many rods.
+"""Rods in parallel: the per-rod kernels of a step, run on threads for a world of many rods.
 
 In three stages of a step every rod's work is its own: its terms and band
 (:func:`derods._numba.step.rods_step`), its diagonal block of the implicit matrix, which
 is block diagonal over rods, with its factor and solves
 (:func:`derods._numba.implicit.unconstrained_step`), and its strain limit
-(:func:`derods._numba.projection.limit_strain`). Each of these kernels loops over the
-chunks of a :class:`Split`, runs of whole rods, and each chunk over its rods in order,
-doing for them exactly what one chunk of all rods does: so whatever the chunks, the
-results are the same to the bit (tests/test_parallel.py holds a world of many rods to
-that). Each kernel is compiled twice from its one Python function
-(:func:`compiled_twice`): serially, where ``prange`` is ``range``, and with numba's
-``parallel=True``, where the chunks run on numba's threads.
+(:func:`derods._numba.projection.limit_strain`). Each of these kernels takes a
+:class:`Split` of the rods into chunks, runs of whole rods, and does for each chunk's rods
+in order exactly what it does for all rods at once: so whatever the chunks, the results
+are the same to the bit (tests/test_parallel.py holds a world of many rods to that). The
+kernels release the GIL (``nogil``), and a :class:`Runner` calls one of them once per
+chunk, the first chunk in the calling thread and the others on worker threads.
 
-A parallel launch costs microseconds a kernel, as much as a small world's whole rod
-stage: :func:`plan` gives a world the parallel kernels only when its chunks are at least
-:data:`MIN_CHUNK_VERTICES` vertices each, one chunk a thread. Cap the threads with
-``numba.set_num_threads(k)`` (or ``NUMBA_NUM_THREADS=k``) before a world compiles: with
-one thread it keeps the serial kernels.
+Why Python threads rather than numba's ``parallel=True``: measured on the 2-core VM, the
+same kernels with ``prange`` over the chunks took 11 s more to compile from scratch (numba
+compiles each parallel loop's body again, with every kernel it calls), and on a machine
+whose other core was busy a parallel region waited up to a scheduler tick (4-8 ms) for
+its spinning threads, where a thread handed its chunk through a queue costs ~20 us.
 
-numba's threading layer is TBB, OpenMP or its own workqueue, the first it finds (pip's
-numba always has the workqueue; OpenMP needs the system's libgomp). The workqueue must
-not be entered by two threads at once: the parallel kernels are called under
-:data:`LOCK`. GNU OpenMP cannot run in a child forked after it started: such a child
-keeps to the serial kernels.
+A hand-off costs that much a kernel call, several times a small world's rod stage:
+:func:`plan` gives a world threads only when each chunk holds at least
+:data:`MIN_CHUNK_VERTICES` vertices, one chunk a thread. The threads are numba's count,
+``numba.config.NUMBA_NUM_THREADS`` (the cores this process may use; set
+``NUMBA_NUM_THREADS=k`` in the environment to cap it, 1 for none), read when a world
+compiles.
 """
 
 from __future__ import annotations
 
 import os
-import threading
-import types
+from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
 import numba as nb
 import numpy as np
 
-#: Fewest vertices a chunk of rods takes for a world to step in parallel (see
+from .calls import Bound
+
+#: Fewest vertices a chunk of rods takes for a world to step on threads (see
 #: docs/performance.md for how it was measured).
 MIN_CHUNK_VERTICES = 256
-#: Held around every call of a parallel kernel: numba's workqueue layer aborts the
-#: process when two threads launch parallel work at once (two worlds stepped in threads).
-LOCK = threading.Lock()
 
-_after_gnu_fork = False  # set in a child forked from a process running numba's OpenMP threads
+_pool: ThreadPoolExecutor | None = None  # the worker threads, made at first use
 
 
 class Split(NamedTuple):
@@ -57,20 +54,23 @@ class Split(NamedTuple):
 
     @property
     def parallel(self) -> bool:
-        """Whether the step takes the parallel kernels (more than one chunk)."""
+        """Whether the chunks run on threads (more than one)."""
         return len(self.rods) > 2
+
+    def parts(self) -> list["Split"]:
+        """One single-chunk Split per chunk."""
+        return [Split(self.rods[c:c + 2], self.dofs[c:c + 2], self.twists[c:c + 2]) for c in range(len(self.rods) - 1)]
 
 
 def threads() -> int:
-    """The threads numba runs parallel kernels on: 1 in a child forked from a process that
-    started numba's GNU OpenMP threads (they would abort it)."""
-    return 1 if _after_gnu_fork else nb.get_num_threads()
+    """The threads a world's rods may run on: numba's count (``NUMBA_NUM_THREADS``)."""
+    return max(1, int(nb.config.NUMBA_NUM_THREADS))
 
 
 def plan(v_off: np.ndarray, dof_off: np.ndarray, tw_rod: np.ndarray) -> Split:
     """A world's chunks of rods (:func:`split`): one a thread (:func:`threads`) as long as
-    each holds at least :data:`MIN_CHUNK_VERTICES` vertices; one chunk (the serial
-    kernels) when fewer than two would. Arguments as :func:`split`'s."""
+    each holds at least :data:`MIN_CHUNK_VERTICES` vertices; one chunk (no threads) when
+    fewer than two would. Arguments as :func:`split`'s."""
     n_rods, n_vertices = len(v_off) - 1, int(v_off[-1])
     return split(v_off, dof_off, tw_rod, min(threads(), n_rods, n_vertices // MIN_CHUNK_VERTICES))
 
@@ -90,26 +90,47 @@ def split(v_off: np.ndarray, dof_off: np.ndarray, tw_rod: np.ndarray, n_chunks: 
                  np.searchsorted(np.asarray(tw_rod, dtype=np.int64), cuts).astype(np.int64))
 
 
-def compiled_twice(fn):
-    """``fn`` njit-compiled serially and in parallel: two dispatchers from one body. The
-    parallel one's function is a copy named ``<name>_parallel``: numba's disk cache keys
-    its files by a function's name and its bytecode, not by ``parallel``, and would
-    otherwise hand one variant's machine code to the other."""
-    twin = types.FunctionType(fn.__code__, fn.__globals__, fn.__name__ + "_parallel", fn.__defaults__,
-                              fn.__closure__)
-    twin.__qualname__ = fn.__qualname__ + "_parallel"
-    twin.__doc__ = fn.__doc__
-    return nb.njit(cache=True)(fn), nb.njit(cache=True, parallel=True)(twin)
+class Runner:
+    """A per-rod kernel (a numba dispatcher whose last argument is the split: the Split
+    itself if ``bundle``, else its ``rods``) called once per chunk of ``split``: the first
+    chunk in the calling thread, the others on worker threads. A call returns the chunks'
+    results in order; if a chunk raised, it waits for the others (they write the same
+    arrays) and raises the first chunk's exception."""
+
+    def __init__(self, kernel, split: Split, bundle: bool = False):
+        self.parts = [p if bundle else p.rods for p in split.parts()] if split.parallel else \
+            [split if bundle else split.rods]
+        # A Bound each: its bookkeeping is not shared between threads.
+        self.calls = [Bound(kernel) for _ in self.parts]
+
+    def __call__(self, *args) -> list:
+        if len(self.parts) == 1:
+            return [self.calls[0](*args, self.parts[0])]
+        pool = _workers()
+        futures = [pool.submit(call, *args, part) for call, part in zip(self.calls[1:], self.parts[1:])]
+        results, errors = [], []
+        for run in [lambda: self.calls[0](*args, self.parts[0])] + [f.result for f in futures]:
+            try:
+                results.append(run())
+            except Exception as err:  # noqa: BLE001 - re-raised below, once every chunk is done
+                results.append(None)
+                errors.append(err)
+        if errors:
+            raise errors[0]
+        return results
 
 
-def _after_fork_in_child() -> None:
-    global _after_gnu_fork
-    try:
-        layer = nb.threading_layer()
-    except ValueError:  # no parallel kernel has run: the child may start any layer
-        return
-    if layer == "omp":
-        _after_gnu_fork = True
+def _workers() -> ThreadPoolExecutor:
+    global _pool
+    if _pool is None:
+        _pool = ThreadPoolExecutor(max(1, threads() - 1), thread_name_prefix="derods-rods")
+    return _pool
 
 
-os.register_at_fork(after_in_child=_after_fork_in_child)
+def _forget_workers() -> None:
+    """In a forked child: the parent's worker threads are not there; make new ones."""
+    global _pool
+    _pool = None
+
+
+os.register_at_fork(after_in_child=_forget_workers)

@@ -7,20 +7,15 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from .banded import cholesky_ok, solve_into
-from .parallel import compiled_twice
-
-#: What :func:`project_rod` returns when its system is not positive definite.
-NOT_POSITIVE = -2
+from .banded import cholesky_into, solve_into
 
 
 @nb.njit(cache=True)
 def project_rod(x, inv_mass, rest_len, tol, max_iter):
     """Project x (n_vertices, 3) in place, moving vertex j by inv_mass[j] (0: held);
-    returns the iterations used, -1 (with the last strain left in x's distance from
-    the manifold) if it did not converge, or :data:`NOT_POSITIVE` if an iteration's
-    system was not positive definite (a state gone wild; returned, not raised, so that a
-    parallel loop can report it). Edges between two held vertices keep their length."""
+    returns the iterations used, or -1 (with the last strain left in x's distance from
+    the manifold) if it did not converge. Edges between two held vertices keep their
+    length."""
     nv = x.shape[0]
     lo, hi = -1, -1
     for j in range(nv - 1):
@@ -61,8 +56,7 @@ def project_rod(x, inv_mass, rest_len, tol, max_iter):
                              + gvec[j, 2] * gvec[j + 1, 2]) * w1
             else:
                 ab[1, j] = 0.0
-        if not cholesky_ok(ab, lt):
-            return NOT_POSITIVE
+        cholesky_into(ab, lt)
         solve_into(lt, c, 0, m)  # c <- dlambda
         for j in range(m):
             for a in range(3):
@@ -112,15 +106,13 @@ def projection_step(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, tol, m
     predict_into(x, place, v, a0, h, xp)
     for i in range(len(v_off) - 1):
         v0, v1 = v_off[i], v_off[i + 1]
-        status = project_rod(xp[v0:v1], inv_mass[v0:v1], rest_len[e_off[i]:e_off[i + 1]], tol, max_iter)
-        if status == NOT_POSITIVE:
-            raise ValueError("matrix is not positive definite")
-        if status < 0:
+        if project_rod(xp[v0:v1], inv_mass[v0:v1], rest_len[e_off[i]:e_off[i + 1]], tol, max_iter) < 0:
             return i
     landing_into(x, xp, place, v, h, 0, x.shape[0], accel)
     return -1
 
 
+@nb.njit(cache=True, nogil=True)
 def limit_strain(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, limit, tol, max_iter, xp, held_x,
                  chunks):
     """Strain limiting of the implicit step: predict x + h (v + h a0) for the free
@@ -131,41 +123,32 @@ def limit_strain(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, 
     cannot bring there in ``max_iter`` iterations (held taut between pins: no point of
     the constraint set is near) keeps its a0: the limit is a best effort, not a
     constraint. x, xp (n_vertices, 3): positions now and (scratch) predicted. chunks
-    (n_chunks + 1,): the rods in runs (:class:`derods._numba.parallel.Split`'s ``rods``),
-    one a thread in the parallel variant. Returns (rods projected, rods left as they
-    were); raises ValueError if a projection's system is not positive definite."""
-    n_chunks = len(chunks) - 1
-    counts = np.empty((n_chunks, 3), dtype=np.int64)  # per chunk: projected, left, not positive definite
+    (n_chunks + 1,): the rods this call limits, in runs
+    (:class:`derods._numba.parallel.Split`'s ``rods``): calls for other runs may go at once
+    on other threads (the call releases the GIL). Returns (rods projected, rods left as
+    they were)."""
     settings = (h, limit, tol, max_iter)
-    for c in nb.prange(n_chunks):
-        limit_range(x, v_off, e_off, rest_len, inv_mass, place, v, a0, limited, settings, xp, held_x, chunks[c],
-                    chunks[c + 1], counts[c])
     n_projected, n_left = 0, 0
-    for c in range(n_chunks):
-        if counts[c, 2]:
-            raise ValueError("matrix is not positive definite")
-        n_projected += counts[c, 0]
-        n_left += counts[c, 1]
+    for c in range(len(chunks) - 1):
+        projected, left = limit_range(x, v_off, e_off, rest_len, inv_mass, place, v, a0, limited, settings, xp,
+                                      held_x, chunks[c], chunks[c + 1])
+        n_projected += projected
+        n_left += left
     return n_projected, n_left
 
 
-#: The strain limit compiled for one chunk of rods, and for many chunks run on numba's threads.
-limit_strain, limit_strain_parallel = compiled_twice(limit_strain)
-
-
 @nb.njit(cache=True)
-def limit_range(x, v_off, e_off, rest_len, inv_mass, place, v, a0, limited, settings, xp, held_x, r0, r1, counts):
-    """:func:`limit_strain` for rods r0 .. r1 - 1, settings = (h, limit, tol, max_iter):
-    counts (3,) <- rods projected, rods left, and 1 (the rest of the rods left undone)
-    where a projection's system is not positive definite, else 0."""
+def limit_range(x, v_off, e_off, rest_len, inv_mass, place, v, a0, limited, settings, xp, held_x, r0, r1):
+    """:func:`limit_strain` for rods r0 .. r1 - 1 and their vertices, settings = (h, limit,
+    tol, max_iter): (rods projected, rods left as they were)."""
     h, limit, tol, max_iter = settings
-    counts[:] = 0
     lo, hi = v_off[r0], v_off[r1]
     predict_range(x, place, v, a0, h, xp, lo, hi)
     for vtx in range(lo, hi):
         if place[vtx] < 0:
             for a in range(3):
                 xp[vtx, a] = held_x[vtx, a]
+    n_projected, n_left = 0, 0
     for i in range(r0, r1):
         if not limited[i]:
             continue
@@ -179,12 +162,9 @@ def limit_range(x, v_off, e_off, rest_len, inv_mass, place, v, a0, limited, sett
             worst = max(worst, abs(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) / rest_len[e0 + j] - 1.0))
         if worst <= limit:
             continue
-        status = project_rod(xp[v0:v1], inv_mass[v0:v1], rest_len[e0:e_off[i + 1]], tol, max_iter)
-        if status == NOT_POSITIVE:
-            counts[2] = 1
-            return
-        if status < 0:
-            counts[1] += 1
+        if project_rod(xp[v0:v1], inv_mass[v0:v1], rest_len[e0:e_off[i + 1]], tol, max_iter) < 0:
+            n_left += 1
             continue
-        counts[0] += 1
+        n_projected += 1
         landing_into(x, xp, place, v, h, v0, v1, a0)
+    return n_projected, n_left

@@ -32,7 +32,6 @@ import numpy as np
 from .material import material_rod
 from .rod_geometry import Scratch, add_joint_hessian, curvature_binormal, edges, joint_stencil, reference_twist
 from .rod_geometry import turn_clamps
-from .parallel import compiled_twice
 
 
 @nb.njit(cache=True)
@@ -119,6 +118,7 @@ def isotropic_joints(rods, i, t, u, theta, theta_first, theta_last, place, grad,
     return energy, lam, coef
 
 
+@nb.njit(cache=True, nogil=True)
 def rods_step(rods, ends, frames, x, xmat, place, bands, band_of_rod, out, chunks):
     """Every rod of a set, laid end to end: rods (:class:`derods.step.RodSet`), their clamps
     on moving bodies ends (:class:`derods.step.EndBodies`), their state frames
@@ -133,23 +133,17 @@ def rods_step(rods, ends, frames, x, xmat, place, bands, band_of_rod, out, chunk
     (n_vertices, 3) [1/m], the reduced twist term's direction (zero for a rod of kind 2);
     energy, lam, coef, strain per rod; end_moment (n_rods, 2) [N m], dE/dtheta of each
     rod's first and last edge. kind: 1 isotropic and naturally straight, 2 anisotropic or
-    naturally curved (Newton twist solve). chunks (n_chunks + 1,): the rods in runs
-    (:class:`derods._numba.parallel.Split`'s ``rods``), one a thread in the parallel
-    variant; each rod writes only its own slices and its own places of a band. Returns
-    the first rod whose largest |strain| is not finite or exceeds ``out.strain`` on
-    entry, else -1 (out.strain (n_rods,): limit in, value out)."""
-    n_chunks = len(chunks) - 1
-    bad = np.empty(n_chunks, dtype=np.int64)
-    for c in nb.prange(n_chunks):
-        bad[c] = rods_range(rods, ends, frames, x, xmat, place, bands, band_of_rod, out, chunks[c], chunks[c + 1])
-    for c in range(n_chunks):
-        if bad[c] >= 0:
-            return bad[c]
+    naturally curved (Newton twist solve). chunks (n_chunks + 1,): the rods this call steps,
+    in runs (:class:`derods._numba.parallel.Split`'s ``rods``): each rod writes only its
+    own slices and its own places of a band, so calls for other runs may go at once on
+    other threads (the call releases the GIL). Returns the first of its rods whose largest
+    |strain| is not finite or exceeds ``out.strain`` on entry, else -1 (out.strain
+    (n_rods,): limit in, value out)."""
+    for c in range(len(chunks) - 1):
+        bad = rods_range(rods, ends, frames, x, xmat, place, bands, band_of_rod, out, chunks[c], chunks[c + 1])
+        if bad >= 0:
+            return bad
     return -1
-
-
-#: The rod step compiled for one chunk of rods, and for many chunks run on numba's threads.
-rods_step, rods_step_parallel = compiled_twice(rods_step)
 
 
 @nb.njit(cache=True)

@@ -29,9 +29,8 @@ import numpy as np
 from .._numba import coupling as _io
 from .._numba import implicit as _imp
 from .._numba import parallel
-from .._numba import projection as _proj
-from .._numba.calls import bound
-from .._numba.projection import projection_step
+from .._numba import step as _rods
+from .._numba.projection import limit_strain, projection_step
 from ..step import EndBodies, Frames, RodSet, Terms, evaluate
 from .clamps import Reactions
 from .contact import SUPPORTED, ContactStep, ReferenceCorrection
@@ -88,7 +87,7 @@ class Step:
         self.terms = Terms.empty(rods.n_rods, rods.n_vertices, n, layout.band_rows)
         tw = [i for i in range(rods.n_rods) if rods.kind[i] == 1 and rods.has_twist[i] and rods.clamped[i]]
         self.rod_tw = np.array(tw, dtype=np.int64)
-        # One chunk, the serial kernels, for a world too small to gain from threads.
+        # One chunk, no threads, for a world too small to gain from them.
         self.use_split(parallel.plan(rods.v_off, layout.dof_off, self.rod_tw))
         self.system = ImplicitSystem(self.h, n, layout.mass, mass_damping, stiffness_damping, layout.band_rows,
                                      layout.dof_off[self.rod_tw], layout.dof_off[self.rod_tw + 1], self.rod_tw)
@@ -106,12 +105,13 @@ class Step:
 
     def use_split(self, split: parallel.Split) -> None:
         """Step the rods in the chunks of ``split`` (:class:`derods._numba.parallel.Split`,
-        over this world's rods): more than one takes the parallel kernels. The results are
-        the same either way; the world's compile chose by its size, and tests and
-        benchmarks change it to compare."""
+        over this world's rods), one a thread. The results are the same either way; the
+        world's compile chose by its size (:func:`derods._numba.parallel.plan`), and tests
+        and benchmarks change it to compare."""
         self.split = split
-        self._unconstrained_step = bound(_imp.unconstrained_step, _imp.unconstrained_step_parallel, split.parallel)
-        self._limit_kernel = bound(_proj.limit_strain, _proj.limit_strain_parallel, split.parallel)
+        self._rods_step = parallel.Runner(_rods.rods_step, split)
+        self._unconstrained_step = parallel.Runner(_imp.unconstrained_step, split, bundle=True)
+        self._limit_kernel = parallel.Runner(limit_strain, split)
 
     # -- the shared half ---------------------------------------------------------
     def positions(self) -> np.ndarray:
@@ -151,7 +151,7 @@ class Step:
         """Frames, twist, forces and the world's band at x (one compiled call); the index of
         a rod strained beyond MAX_STRAIN, else -1."""
         return evaluate(self.rods, self.frames, x, self.layout.place, self.terms, self.ends, self.xmat, MAX_STRAIN,
-                        self._bands, self._band_of_rod, self.split.rods)
+                        self._bands, self._band_of_rod, self._rods_step)
 
     def check(self) -> None:
         """Divergence after the step: MuJoCo's bad-acceleration reset, NaN, runaway speed."""
@@ -174,7 +174,7 @@ class Step:
 
     def _unconstrained(self, lay, t, s) -> None:
         self._unconstrained_step(s.arrays, t, lay.places, self.params, self.qvel, self.xfrc_applied, self.v,
-                                 self.other, self._rhs, self._kv, self.a0, self.split)
+                                 self.other, self._rhs, self._kv, self.a0)
 
     def carried(self) -> list[np.ndarray]:
         """The arrays this mode carries from one step to the next (beside MuJoCo's state),
@@ -323,10 +323,10 @@ class Implicit(Step):
             return 0
         inv_mass = self.inv_mass if inv_mass is None else inv_mass
         try:
-            n, _ = self._limit_kernel(self.x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, inv_mass,
-                                      self.layout.place, self.v, a, self.h, self.limited, self.strain_limit,
-                                      PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp,
-                                      self.x if held_x is None else held_x, self.split.rods)
+            n = sum(n for n, _ in self._limit_kernel(self.x, self.rods.v_off, self.rods.e_off, self.rods.rest_len,
+                                                     inv_mass, self.layout.place, self.v, a, self.h, self.limited,
+                                                     self.strain_limit, PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp,
+                                                     self.x if held_x is None else held_x))
         except ValueError as err:  # the projection's banded Cholesky, in a state gone wild
             self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)
         return n

@@ -6,9 +6,9 @@ seconds of CPU), later runs load the cache in about a second. :func:`warm_up`
 makes each kernel's first call happen up front, on small worlds that exercise
 every path of the step (isotropic, anisotropic and curved rods, a twisted ring,
 clamps on a moving body, contact with an obstacle and with the rod itself,
-explicit and projection modes, the per-rod kernels on threads), so no simulation
-stalls in the middle when a path is first taken (the first contact, say).
-:func:`prepare` says so when it takes long.
+explicit and projection modes), so no simulation stalls in the middle when a
+path is first taken (the first contact, say). :func:`prepare` says so when it
+takes long.
 """
 
 from __future__ import annotations
@@ -30,7 +30,6 @@ def warm_up() -> None:
     import numpy as np
 
     from .. import shapes
-    from .._numba import parallel
     from ..material import Material
     from ..rod import Rod
     from ..twist import TwistBoundary
@@ -56,11 +55,6 @@ def warm_up() -> None:
                                                                                  radius2=0.005)), "ribbon")
     world.step(3)
     world.contact_force("lying")
-    # The parallel variants of the per-rod kernels, which worlds of many rods take
-    # (derods._numba.parallel): the same world, its rods in two chunks.
-    st = world._step
-    st.use_split(parallel.split(st.rods.v_off, st.layout.dof_off, st.rod_tw, 2))
-    world.step(2)
     # Rods held by bodies with dofs (derods.sim.coupled): a slide cart holding a rod that
     # lies on the floor (the bordered contact solve) and a hinged arm (arcs, differences).
     spec = mujoco.MjSpec.from_string(
