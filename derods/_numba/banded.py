@@ -31,29 +31,19 @@ def cholesky_into(ab, lt):
 @nb.njit(cache=True)
 def cholesky_ok(ab, lt):
     """:func:`cholesky_into` that returns False instead of raising (lt is then partial)."""
-    return cholesky_range(ab, lt, 0, ab.shape[1])
-
-
-@nb.njit(cache=True)
-def cholesky_range(ab, lt, lo, hi):
-    """:func:`cholesky_ok` of the diagonal block [lo, hi) of a block-diagonal matrix: lt's
-    rows lo..hi-1, entries reaching past hi set to 0. Where A's entries that couple the
-    block to the rest are +0 (as in a band written rod by rod), its factor's rows are bit
-    for bit those of the whole matrix's factor: there a column's update of the rows past hi
-    multiplies by those zeros, which leave every entry as it was, and is skipped."""
-    bwp = ab.shape[0]
+    bwp, n = ab.shape
     bw = bwp - 1
-    for j in range(lo, hi):
+    for j in range(n):
         for d in range(bwp):
             lt[j, d] = ab[d, j]
-    for j in range(lo, hi):
+    for j in range(n):
         pivot = lt[j, 0]
         if not pivot > 0.0:
             return False
         pivot = math.sqrt(pivot)
         lt[j, 0] = pivot
         inv = 1.0 / pivot
-        m = min(bw, hi - 1 - j)
+        m = min(bw, n - 1 - j)
         for r in range(1, m + 1):
             lt[j, r] *= inv
         for s in range(1, m + 1):
@@ -151,17 +141,11 @@ def inverse_band(lt, rows):
 @nb.njit(cache=True)
 def matvec_into(ab, w, y):
     """y = A w for symmetric A in lower banded form (b + 1, n); w, y shape (n,)."""
-    matvec_range(ab, w, y, 0, ab.shape[1])
-
-
-@nb.njit(cache=True)
-def matvec_range(ab, w, y, lo, hi):
-    """y[lo:hi] = A w on the diagonal block [lo, hi) of a block-diagonal A (lower banded,
-    (b + 1, n)); the block's entries are summed in :func:`matvec_into`'s order."""
     bw = ab.shape[0] - 1
-    for i in range(lo, hi):
+    n = ab.shape[1]
+    for i in range(n):
         y[i] = ab[0, i] * w[i]
     for d in range(1, bw + 1):
-        for j in range(lo, hi - d):
+        for j in range(n - d):
             y[j + d] += ab[d, j] * w[j]
             y[j] += ab[d, j] * w[j + d]

@@ -15,7 +15,7 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from .banded import cholesky_range, matvec_range, solve_into
+from .banded import cholesky_into, matvec_into, solve_into
 
 
 class System(NamedTuple):
@@ -69,38 +69,27 @@ class StepParams(NamedTuple):
 def factor_system(system, m_coef, s):
     """A's band a_band = s k_band + diag(m_coef mass); lt its Cholesky factor (n, rows); for
     each twist term i: z[lo_i:hi_i] = B^-1 g_i (block-local), den_i = 1 + s c_i g_i.z_i;
-    weights = (m_coef, s). The arrays are ``system``'s (:class:`System`). Raises ValueError
-    if A is not positive definite."""
-    system.weights[0] = m_coef
-    system.weights[1] = s
-    if not factor_range(system, m_coef, s, 0, system.k_band.shape[1], 0, len(system.tw_lo)):
-        raise ValueError("matrix is not positive definite")
-
-
-@nb.njit(cache=True)
-def factor_range(system, m_coef, s, lo, hi, t0, t1):
-    """:func:`factor_system` on the diagonal block of dofs [lo, hi) and its twist terms
-    t0 .. t1 - 1 (weights not written). False if A is not positive definite there."""
+    weights = (m_coef, s). The arrays are ``system``'s (:class:`System`)."""
     k_band, mass, a_band, lt, g, z = system.k_band, system.mass, system.a_band, system.lt, system.g, system.z
     tw_lo, tw_hi, tw_c, den = system.tw_lo, system.tw_hi, system.tw_c, system.den
-    rows = k_band.shape[0]
+    system.weights[0] = m_coef
+    system.weights[1] = s
+    rows, n = k_band.shape
     for d in range(rows):
-        for j in range(lo, hi):
+        for j in range(n):
             a_band[d, j] = s * k_band[d, j]
-    for j in range(lo, hi):
+    for j in range(n):
         a_band[0, j] += m_coef * mass[j]
-    if not cholesky_range(a_band, lt, lo, hi):
-        return False
-    for i in range(t0, t1):
-        r0, r1 = tw_lo[i], tw_hi[i]
+    cholesky_into(a_band, lt)
+    for i in range(len(tw_lo)):
+        lo, hi = tw_lo[i], tw_hi[i]
         acc = 0.0
-        for j in range(r0, r1):
+        for j in range(lo, hi):
             z[j] = g[j]
-        solve_into(lt, z, r0, r1)
-        for j in range(r0, r1):
+        solve_into(lt, z, lo, hi)
+        for j in range(lo, hi):
             acc += g[j] * z[j]
         den[i] = 1.0 + s * tw_c[i] * acc
-    return True
 
 
 @nb.njit(cache=True)
@@ -108,45 +97,41 @@ def sm_solve_into(system, x):
     """x <- A^-1 x in place (A factored, ``system`` a :class:`System`): a banded solve,
     then one Sherman-Morrison update per twist term within its rod's range (A's band is
     block diagonal)."""
-    sm_solve_range(system, x, 0, x.shape[0], 0, len(system.tw_lo))
-
-
-@nb.njit(cache=True)
-def sm_solve_range(system, x, lo, hi, t0, t1):
-    """:func:`sm_solve_into` on the diagonal block of dofs [lo, hi) with its twist terms
-    t0 .. t1 - 1."""
     lt, g, z, den, s = system.lt, system.g, system.z, system.den, system.weights[1]
     tw_lo, tw_hi, tw_c = system.tw_lo, system.tw_hi, system.tw_c
-    solve_into(lt, x, lo, hi)
-    for i in range(t0, t1):
-        r0, r1 = tw_lo[i], tw_hi[i]
+    n = x.shape[0]
+    solve_into(lt, x, 0, n)
+    for i in range(len(tw_lo)):
+        lo, hi = tw_lo[i], tw_hi[i]
         gx = 0.0
-        for j in range(r0, r1):
+        for j in range(lo, hi):
             gx += g[j] * x[j]
         f = s * tw_c[i] * gx / den[i]
-        for j in range(r0, r1):
+        for j in range(lo, hi):
             x[j] -= z[j] * f
 
 
 @nb.njit(cache=True)
 def k_matvec_into(system, w, y):
     """y = K w = K_band w + sum_i c_i g_i (g_i . w) (``system`` a :class:`System`)."""
-    k_matvec_range(system, w, y, 0, system.k_band.shape[1], 0, len(system.tw_lo))
+    g, tw_lo, tw_hi, tw_c = system.g, system.tw_lo, system.tw_hi, system.tw_c
+    matvec_into(system.k_band, w, y)
+    for i in range(len(tw_lo)):
+        lo, hi = tw_lo[i], tw_hi[i]
+        gw = 0.0
+        for j in range(lo, hi):
+            gw += g[j] * w[j]
+        for j in range(lo, hi):
+            y[j] += tw_c[i] * g[j] * gw
 
 
 @nb.njit(cache=True)
-def k_matvec_range(system, w, y, lo, hi, t0, t1):
-    """:func:`k_matvec_into` on the diagonal block of dofs [lo, hi) with its twist terms
-    t0 .. t1 - 1: y[lo:hi] from w[lo:hi]."""
-    g, tw_lo, tw_hi, tw_c = system.g, system.tw_lo, system.tw_hi, system.tw_c
-    matvec_range(system.k_band, w, y, lo, hi)
-    for i in range(t0, t1):
-        r0, r1 = tw_lo[i], tw_hi[i]
-        gw = 0.0
-        for j in range(r0, r1):
-            gw += g[j] * w[j]
-        for j in range(r0, r1):
-            y[j] += tw_c[i] * g[j] * gw
+def gather_dofs(per_vertex, free_vertex, out):
+    """out[3 p + a] = per_vertex[free_vertex[p], a]: a per-vertex field on the free dofs."""
+    for p in range(len(free_vertex)):
+        v = free_vertex[p]
+        for a in range(3):
+            out[3 * p + a] = per_vertex[v, a]
 
 
 @nb.njit(cache=True)
@@ -154,25 +139,14 @@ def twist_terms(system, terms, places):
     """The rods' twist terms into ``system`` (:class:`System`): each term's c from its rod's
     ``terms.coef`` and the directions g from ``terms.g_tw`` on the free dofs
     (:class:`derods.step.Terms`, :class:`Places`)."""
-    twist_terms_range(system, terms, places, 0, len(places.dofs), 0, len(system.tw_rod))
+    tw_rod, tw_c, coef = system.tw_rod, system.tw_c, terms.coef
+    for i in range(len(tw_rod)):
+        tw_c[i] = coef[tw_rod[i]]
+    gather_dofs(terms.g_tw, places.free_vertex, system.g)
 
 
 @nb.njit(cache=True)
-def twist_terms_range(system, terms, places, lo, hi, t0, t1):
-    """:func:`twist_terms` for the dofs [lo, hi) (whole places) and the twist terms
-    t0 .. t1 - 1."""
-    tw_rod, tw_c, coef, g, g_tw, free_vertex = system.tw_rod, system.tw_c, terms.coef, system.g, terms.g_tw, \
-        places.free_vertex
-    for i in range(t0, t1):
-        tw_c[i] = coef[tw_rod[i]]
-    for p in range(lo // 3, hi // 3):
-        v = free_vertex[p]
-        for a in range(3):
-            g[3 * p + a] = g_tw[v, a]
-
-
-@nb.njit(cache=True, nogil=True)
-def unconstrained_step(system, terms, places, params, qvel, xfrc_applied, v, other, rhs, kv, a0, split):
+def unconstrained_step(system, terms, places, params, qvel, xfrc_applied, v, other, rhs, kv, a0):
     """The implicit step without contact, for all rods: assemble and factor A, solve
     A a0 = F - a_m M v - (b + h) K v with F = -grad + gravity + the user's xfrc_applied.
 
@@ -180,34 +154,16 @@ def unconstrained_step(system, terms, places, params, qvel, xfrc_applied, v, oth
     filled and factored here. terms (:class:`derods.step.Terms`): grad, g_tw (n_vertices, 3),
     coef (n_rods,). places (:class:`Places`); params (:class:`StepParams`); qvel,
     xfrc_applied: MuJoCo's arrays. Out: v (n,) [m/s], other (n,) [N] (gravity + user
-    force), a0 (n,) [m/s^2]; rhs, kv are scratch. split
-    (:class:`derods._numba.parallel.Split`): A is block diagonal over rods, so each chunk of
-    whole rods is solved on its own (:func:`unconstrained_chunk`), each rod's arithmetic
-    as in one solve of them all; a call may take some of the chunks, and calls for the
-    others run at once on other threads (it releases the GIL). Raises ValueError if A is
-    not positive definite.
+    force), a0 (n,) [m/s^2]; rhs, kv are scratch.
     """
-    h, mass_damping, stiffness_damping = params.h, params.mass_damping, params.stiffness_damping
-    system.weights[0] = 1.0 + h * mass_damping
-    system.weights[1] = h * h + h * stiffness_damping
-    for c in range(len(split.dofs) - 1):
-        if not unconstrained_chunk(system, terms, places, params, qvel, xfrc_applied, v, other, rhs, kv, a0, split, c):
-            raise ValueError("matrix is not positive definite")
-
-
-@nb.njit(cache=True)
-def unconstrained_chunk(system, terms, places, params, qvel, xfrc_applied, v, other, rhs, kv, a0, split, c):
-    """:func:`unconstrained_step` on chunk c of ``split``: its dofs [lo, hi) and twist terms
-    t0 .. t1 - 1, with A's weights already in ``system.weights``. False (the rest of the
-    chunk left undone) if A is not positive definite there."""
     h, mass_damping, stiffness_damping, gravity = params
     free_vertex, free_body, dofs = places.free_vertex, places.free_body, places.dofs
     mass, grad = system.mass, terms.grad
-    lo, hi, t0, t1 = split.dofs[c], split.dofs[c + 1], split.twists[c], split.twists[c + 1]
-    twist_terms_range(system, terms, places, lo, hi, t0, t1)
-    if not factor_range(system, system.weights[0], system.weights[1], lo, hi, t0, t1):
-        return False
-    for p in range(lo // 3, hi // 3):
+    n = len(dofs)
+    s = h * h + h * stiffness_damping
+    twist_terms(system, terms, places)
+    factor_system(system, 1.0 + h * mass_damping, s)
+    for p in range(len(free_vertex)):
         b = free_body[p]
         vtx = free_vertex[p]
         for a in range(3):
@@ -215,12 +171,29 @@ def unconstrained_chunk(system, terms, places, params, qvel, xfrc_applied, v, ot
             v[k] = qvel[dofs[k]]
             other[k] = mass[k] * gravity[a] + xfrc_applied[b, a]
             rhs[k] = other[k] - grad[vtx, a] - mass_damping * mass[k] * v[k]
-    k_matvec_range(system, v, kv, lo, hi, t0, t1)
-    for k in range(lo, hi):
+    k_matvec_into(system, v, kv)
+    for k in range(n):
         rhs[k] -= (stiffness_damping + h) * kv[k]
         a0[k] = rhs[k]
-    sm_solve_range(system, a0, lo, hi, t0, t1)
-    return True
+    sm_solve_into(system, a0)
+
+
+@nb.njit(cache=True, nogil=True)
+def unconstrained_chunk(system, terms, places, params, qvel, xfrc_applied, v, other, rhs, kv, a0, part):
+    """:func:`unconstrained_step` for one chunk of rods, ``part`` (a one-chunk
+    :class:`derods._numba.parallel.Split`): the same step on their block of A, which is
+    block diagonal over rods (their dofs [lo, hi), their twist terms t0 .. t1 - 1), through
+    views of the world's arrays. Each rod's arithmetic is that of one step of all rods, and
+    the call releases the GIL: the chunks of a world run at once on threads. (Entries of A
+    that couple the block to the rest are +0; the whole matrix's factor, products and
+    solves add or subtract only products with them, which leave every value as it is.)"""
+    lo, hi, t0, t1 = part.dofs[0], part.dofs[1], part.twists[0], part.twists[1]
+    block = System(system.k_band[:, lo:hi], system.mass[lo:hi], system.g[lo:hi], system.tw_rod[t0:t1],
+                   system.tw_lo[t0:t1] - lo, system.tw_hi[t0:t1] - lo, system.tw_c[t0:t1], system.a_band[:, lo:hi],
+                   system.lt[lo:hi], system.z[lo:hi], system.den[t0:t1], system.weights)
+    mine = Places(places.free_vertex[lo // 3:hi // 3], places.free_body[lo // 3:hi // 3], places.dofs[lo:hi])
+    unconstrained_step(block, terms, mine, params, qvel, xfrc_applied, v[lo:hi], other[lo:hi], rhs[lo:hi],
+                       kv[lo:hi], a0[lo:hi])
 
 
 @nb.njit(cache=True)

@@ -4,20 +4,25 @@ In three stages of a step every rod's work is its own: its terms and band
 (:func:`derods._numba.step.rods_step`), its diagonal block of the implicit matrix, which
 is block diagonal over rods, with its factor and solves
 (:func:`derods._numba.implicit.unconstrained_step`), and its strain limit
-(:func:`derods._numba.projection.limit_strain`). Each of these kernels takes a
-:class:`Split` of the rods into chunks, runs of whole rods, and does for each chunk's rods
-in order exactly what it does for all rods at once: so whatever the chunks, the results
-are the same to the bit (tests/test_parallel.py holds a world of many rods to that). The
-kernels release the GIL (``nogil``), and a :class:`Runner` calls one of them once per
-chunk, the first chunk in the calling thread and the others on worker threads.
+(:func:`derods._numba.projection.limit_strain`). Each has a chunk kernel beside it
+(``rods_chunk``, ``unconstrained_chunk``, ``limit_chunk``) that runs the same code for one
+:class:`Split` chunk, a run of whole rods, on views of the world's arrays, and releases the
+GIL. A world whose rods are one chunk calls the kernels as they are (:func:`kernel`); a
+world of more chunks calls the chunk kernels through a :class:`Runner`, the first chunk in
+the stepping thread and the others on worker threads. Each rod's arithmetic is the same
+either way, so the results are the same to the bit (tests/test_parallel.py holds a world
+of many rods to that).
 
-Why Python threads rather than numba's ``parallel=True``: measured on the 2-core VM, the
+Why Python threads rather than numba's ``parallel=True``, measured on the 2-core VM: the
 same kernels with ``prange`` over the chunks took 11 s more to compile from scratch (numba
-compiles each parallel loop's body again, with every kernel it calls), and on a machine
-whose other core was busy a parallel region waited up to a scheduler tick (4-8 ms) for
-its spinning threads, where a thread handed its chunk through a queue costs ~20 us.
+compiles each parallel loop's body again, with every kernel it calls: 5.9 s for the rods'
+alone, where a second plain entry point costs 1.3 s), and with the machine's other core
+busy, a parallel region waited a scheduler tick (4-8 ms) for GNU OpenMP's spinning
+threads, where a chunk handed to a thread through a queue costs ~20 us and the waiting
+thread sleeps. Nor does a thread pool depend on numba's threading layer (no lock for its
+workqueue, no OpenMP rule against forking).
 
-A hand-off costs that much a kernel call, several times a small world's rod stage:
+A hand-off costs that much a kernel call, more than a small world's whole rod stage:
 :func:`plan` gives a world threads only when each chunk holds at least
 :data:`MIN_CHUNK_VERTICES` vertices, one chunk a thread. The threads are numba's count,
 ``numba.config.NUMBA_NUM_THREADS`` (the cores this process may use; set
@@ -90,22 +95,32 @@ def split(v_off: np.ndarray, dof_off: np.ndarray, tw_rod: np.ndarray, n_chunks: 
                  np.searchsorted(np.asarray(tw_rod, dtype=np.int64), cuts).astype(np.int64))
 
 
+def kernel(whole, chunk, split: Split, bundle: bool = False, combine=None, resolve: bool = True):
+    """How a world calls a per-rod kernel: ``whole`` (its arguments as they are) when
+    ``split`` is one chunk, else a :class:`Runner` of ``chunk`` over the chunks, their
+    results combined by ``combine``. resolve: call through a
+    :class:`derods._numba.calls.Bound` (for arguments that come back step after step; a
+    call with arrays made afresh goes to the dispatcher)."""
+    if not split.parallel:
+        return Bound(whole) if resolve else whole
+    return Runner(chunk, split, bundle, combine, resolve)
+
+
 class Runner:
-    """A per-rod kernel (a numba dispatcher whose last argument is the split: the Split
-    itself if ``bundle``, else its ``rods``) called once per chunk of ``split``: the first
-    chunk in the calling thread, the others on worker threads. A call returns the chunks'
-    results in order; if a chunk raised, it waits for the others (they write the same
-    arrays) and raises the first chunk's exception."""
+    """A chunk kernel (a numba dispatcher that releases the GIL, whose last argument is a
+    chunk: a one-chunk Split if ``bundle``, else its ``rods`` (2,)) called once per chunk of
+    ``split``: the first chunk in the calling thread, the others on worker threads.
+    Returns ``combine`` of the chunks' results in order (None without it); if a chunk
+    raised, it waits for the others (they write the same arrays) and raises the first
+    chunk's exception. resolve: as :func:`kernel`'s."""
 
-    def __init__(self, kernel, split: Split, bundle: bool = False):
-        self.parts = [p if bundle else p.rods for p in split.parts()] if split.parallel else \
-            [split if bundle else split.rods]
-        # A Bound each: its bookkeeping is not shared between threads.
-        self.calls = [Bound(kernel) for _ in self.parts]
+    def __init__(self, chunk, split: Split, bundle: bool = False, combine=None, resolve: bool = True):
+        self.parts = [p if bundle else p.rods for p in split.parts()]
+        # A Bound each: no bookkeeping shared between threads.
+        self.calls = [Bound(chunk) if resolve else chunk for _ in self.parts]
+        self.combine = combine
 
-    def __call__(self, *args) -> list:
-        if len(self.parts) == 1:
-            return [self.calls[0](*args, self.parts[0])]
+    def __call__(self, *args):
         pool = _workers()
         futures = [pool.submit(call, *args, part) for call, part in zip(self.calls[1:], self.parts[1:])]
         results, errors = [], []
@@ -117,7 +132,17 @@ class Runner:
                 errors.append(err)
         if errors:
             raise errors[0]
-        return results
+        return None if self.combine is None else self.combine(results)
+
+
+def first_bad(results: list) -> int:
+    """The rod step's result over chunks: the first rod strained too far, else -1."""
+    return next((r for r in results if r >= 0), -1)
+
+
+def totals(results: list) -> tuple:
+    """The strain limit's result over chunks: (rods projected, rods left), summed."""
+    return tuple(int(sum(r[k] for r in results)) for k in range(2))
 
 
 def _workers() -> ThreadPoolExecutor:

@@ -69,15 +69,8 @@ def project_rod(x, inv_mass, rest_len, tol, max_iter):
 @nb.njit(cache=True)
 def predict_into(x, place, v, a0, h, xp):
     """xp (n_vertices, 3) <- x + h (v + h a0) for the free vertices (place >= 0), x elsewhere."""
-    predict_range(x, place, v, a0, h, xp, 0, x.shape[0])
-
-
-@nb.njit(cache=True)
-def predict_range(x, place, v, a0, h, xp, lo, hi):
-    """:func:`predict_into` for the vertices lo .. hi - 1."""
-    for vtx in range(lo, hi):
-        for a in range(3):
-            xp[vtx, a] = x[vtx, a]
+    xp[:] = x
+    for vtx in range(x.shape[0]):
         p = place[vtx]
         if p >= 0:
             for a in range(3):
@@ -112,9 +105,8 @@ def projection_step(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, tol, m
     return -1
 
 
-@nb.njit(cache=True, nogil=True)
-def limit_strain(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, limit, tol, max_iter, xp, held_x,
-                 chunks):
+@nb.njit(cache=True)
+def limit_strain(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, limit, tol, max_iter, xp, held_x):
     """Strain limiting of the implicit step: predict x + h (v + h a0) for the free
     vertices and held_x (n_vertices, 3) for the held ones (where their bodies take them;
     x for the world's); every rod flagged in ``limited`` (n_rods,) whose predicted edge strain
@@ -122,32 +114,40 @@ def limit_strain(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, 
     a0 (n,) [m/s^2] replaced by the acceleration that lands there. A rod the projection
     cannot bring there in ``max_iter`` iterations (held taut between pins: no point of
     the constraint set is near) keeps its a0: the limit is a best effort, not a
-    constraint. x, xp (n_vertices, 3): positions now and (scratch) predicted. chunks
-    (n_chunks + 1,): the rods this call limits, in runs
-    (:class:`derods._numba.parallel.Split`'s ``rods``): calls for other runs may go at once
-    on other threads (the call releases the GIL). Returns (rods projected, rods left as
-    they were)."""
-    settings = (h, limit, tol, max_iter)
-    n_projected, n_left = 0, 0
-    for c in range(len(chunks) - 1):
-        projected, left = limit_range(x, v_off, e_off, rest_len, inv_mass, place, v, a0, limited, settings, xp,
-                                      held_x, chunks[c], chunks[c + 1])
-        n_projected += projected
-        n_left += left
-    return n_projected, n_left
+    constraint. x, xp (n_vertices, 3): positions now and (scratch) predicted. Returns
+    (rods projected, rods left as they were)."""
+    predict_held(x, place, v, a0, h, held_x, xp)
+    return limit_rods(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, limit, tol, max_iter, xp, 0,
+                      len(v_off) - 1)
+
+
+@nb.njit(cache=True, nogil=True)
+def limit_chunk(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, limit, tol, max_iter, xp, held_x,
+                chunk):
+    """:func:`limit_strain` for the rods chunk[0] .. chunk[1] - 1 (``chunk`` (2,), a chunk of a
+    :class:`derods._numba.parallel.Split`), predicting their vertices only; the call releases
+    the GIL, so that the chunks of a world run at once on threads."""
+    lo, hi = v_off[chunk[0]], v_off[chunk[1]]
+    predict_held(x[lo:hi], place[lo:hi], v, a0, h, held_x[lo:hi], xp[lo:hi])
+    return limit_rods(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, limit, tol, max_iter, xp,
+                      chunk[0], chunk[1])
 
 
 @nb.njit(cache=True)
-def limit_range(x, v_off, e_off, rest_len, inv_mass, place, v, a0, limited, settings, xp, held_x, r0, r1):
-    """:func:`limit_strain` for rods r0 .. r1 - 1 and their vertices, settings = (h, limit,
-    tol, max_iter): (rods projected, rods left as they were)."""
-    h, limit, tol, max_iter = settings
-    lo, hi = v_off[r0], v_off[r1]
-    predict_range(x, place, v, a0, h, xp, lo, hi)
-    for vtx in range(lo, hi):
+def predict_held(x, place, v, a0, h, held_x, xp):
+    """xp (n_vertices, 3) <- x + h (v + h a0) for the free vertices, held_x for the held ones."""
+    predict_into(x, place, v, a0, h, xp)
+    for vtx in range(x.shape[0]):
         if place[vtx] < 0:
             for a in range(3):
                 xp[vtx, a] = held_x[vtx, a]
+
+
+# Inlined into both callers, as derods._numba.step.rods_range.
+@nb.njit(cache=True, inline="always")
+def limit_rods(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, limit, tol, max_iter, xp, r0, r1):
+    """:func:`limit_strain` for rods r0 .. r1 - 1, their vertices predicted in xp: (rods
+    projected, rods left as they were)."""
     n_projected, n_left = 0, 0
     for i in range(r0, r1):
         if not limited[i]:

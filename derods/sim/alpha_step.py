@@ -89,10 +89,9 @@ class GeneralizedAlpha(Implicit):
         inv_mass = self._touching() if self.n_steps else self.inv_mass
         self._shift[:] = 0.0
         try:
-            n = sum(n for n, _ in self._limit_kernel(x, self.rods.v_off, self.rods.e_off, self.rods.rest_len,
-                                                     inv_mass, self.layout.place, self._zero, self._shift, 1.0,
-                                                     self.limited, self.strain_limit, PROJECTION_TOL,
-                                                     PROJECTION_MAX_ITER, self._xp, x))
+            n, _ = self._limit_kernel(x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, inv_mass,
+                                      self.layout.place, self._zero, self._shift, 1.0, self.limited,
+                                      self.strain_limit, PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp, x)
         except ValueError as err:  # the projection's banded Cholesky, in a state gone wild
             self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)
         if n:

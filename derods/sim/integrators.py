@@ -30,7 +30,7 @@ from .._numba import coupling as _io
 from .._numba import implicit as _imp
 from .._numba import parallel
 from .._numba import step as _rods
-from .._numba.projection import limit_strain, projection_step
+from .._numba.projection import limit_chunk, limit_strain, projection_step
 from ..step import EndBodies, Frames, RodSet, Terms, evaluate
 from .clamps import Reactions
 from .contact import SUPPORTED, ContactStep, ReferenceCorrection
@@ -109,9 +109,13 @@ class Step:
         world's compile chose by its size (:func:`derods._numba.parallel.plan`), and tests
         and benchmarks change it to compare."""
         self.split = split
-        self._rods_step = parallel.Runner(_rods.rods_step, split)
-        self._unconstrained_step = parallel.Runner(_imp.unconstrained_step, split, bundle=True)
-        self._limit_kernel = parallel.Runner(limit_strain, split)
+        self._rods_step = parallel.kernel(_rods.rods_step, _rods.rods_chunk, split, combine=parallel.first_bad)
+        self._unconstrained_step = parallel.kernel(_imp.unconstrained_step, _imp.unconstrained_chunk, split,
+                                                   bundle=True)
+        # The strain limit's second call of a step takes arrays made afresh (the contact
+        # solve's accelerations, the touching vertices' masses): numba's dispatcher types them.
+        self._limit_kernel = parallel.kernel(limit_strain, limit_chunk, split, combine=parallel.totals,
+                                             resolve=False)
 
     # -- the shared half ---------------------------------------------------------
     def positions(self) -> np.ndarray:
@@ -323,10 +327,10 @@ class Implicit(Step):
             return 0
         inv_mass = self.inv_mass if inv_mass is None else inv_mass
         try:
-            n = sum(n for n, _ in self._limit_kernel(self.x, self.rods.v_off, self.rods.e_off, self.rods.rest_len,
-                                                     inv_mass, self.layout.place, self.v, a, self.h, self.limited,
-                                                     self.strain_limit, PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp,
-                                                     self.x if held_x is None else held_x))
+            n, _ = self._limit_kernel(self.x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, inv_mass,
+                                      self.layout.place, self.v, a, self.h, self.limited, self.strain_limit,
+                                      PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp,
+                                      self.x if held_x is None else held_x)
         except ValueError as err:  # the projection's banded Cholesky, in a state gone wild
             self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)
         return n
