@@ -93,6 +93,8 @@ def test_a_world_takes_threads_only_when_each_chunk_is_large(monkeypatch):
 
     assert not plan(1, 100_000).parallel
     assert not plan(4, 32).parallel
+    assert not plan(2 * parallel.MIN_CHUNK_VERTICES // 32 - 1, 32).parallel
+    assert plan(2 * parallel.MIN_CHUNK_VERTICES // 32, 32).parallel
     big = plan(1000, 32)
     assert big.parallel and np.array_equal(big.rods, [0, 500, 1000])
     monkeypatch.setattr(parallel, "threads", lambda: 1)  # NUMBA_NUM_THREADS=1

@@ -18,12 +18,12 @@ same kernels with ``prange`` over the chunks took 11 s more to compile from scra
 compiles each parallel loop's body again, with every kernel it calls: 5.9 s for the rods'
 alone, where a second plain entry point costs 1.3 s), and with the machine's other core
 busy, a parallel region waited a scheduler tick (4-8 ms) for GNU OpenMP's spinning
-threads, where a chunk handed to a thread through a queue costs ~20 us and the waiting
-thread sleeps. Nor does a thread pool depend on numba's threading layer (no lock for its
+threads, where a chunk handed to a thread through a queue waits for a core without
+spinning on the other. Nor does a thread pool depend on numba's threading layer (no lock for its
 workqueue, no OpenMP rule against forking).
 
-A hand-off costs that much a kernel call, more than a small world's whole rod stage:
-:func:`plan` gives a world threads only when each chunk holds at least
+A hand-off costs tens of microseconds a kernel call, more than a small world's whole rod
+stage: :func:`plan` gives a world threads only when each chunk holds at least
 :data:`MIN_CHUNK_VERTICES` vertices, one chunk a thread. The threads are numba's count,
 ``numba.config.NUMBA_NUM_THREADS`` (the cores this process may use; set
 ``NUMBA_NUM_THREADS=k`` in the environment to cap it, 1 for none), read when a world
@@ -41,9 +41,11 @@ import numpy as np
 
 from .calls import Bound
 
-#: Fewest vertices a chunk of rods takes for a world to step on threads (see
-#: docs/performance.md for how it was measured).
-MIN_CHUNK_VERTICES = 256
+#: Fewest vertices a chunk of rods takes for a world to step on threads. Measured on the
+#: 2-core VM (benchmarks/bench_parallel.py, sizes): straight rods of 32 vertices hanging,
+#: the cheapest rods a step has, stepped 9 % slower on two threads at 32 rods (1024
+#: vertices), 7 % faster at 64 and 22 % at 128; a hand-off costs ~45 us a kernel call.
+MIN_CHUNK_VERTICES = 1024
 
 _pool: ThreadPoolExecutor | None = None  # the worker threads, made at first use
 
