@@ -363,12 +363,18 @@ class Guard:
         return None
 
 
+#: Entries beyond which OpenBLAS computes a dot product on its threads (measured: 10 001
+#: entries and up kept its threads busy).
+THREADED_DOT = 10_000
+
+
 def _squares(a: np.ndarray) -> float:
     """a . a, on this thread: np.dot of a long vector (a hair's qvel, 96 000 dofs) runs on
     OpenBLAS's threads, which then spin for milliseconds on the other cores and took them
     from the rods' threads (derods._numba.parallel: each of a hair's two chunks of the rod
-    step took 17 ms instead of 9)."""
-    return float(np.einsum("i,i->", a, a))
+    step took 17 ms instead of 9). einsum's own loop does not, but costs ~0.8 us more a
+    call: a short vector keeps np.dot."""
+    return np.dot(a, a) if a.size <= THREADED_DOT else np.einsum("i,i->", a, a)
 
 
 def _dot_bound(bound: float) -> float:
