@@ -19,8 +19,8 @@ compiles each parallel loop's body again, with every kernel it calls: 5.9 s for 
 alone, where a second plain entry point costs 1.3 s), and with the machine's other core
 busy, a parallel region waited a scheduler tick (4-8 ms) for GNU OpenMP's spinning
 threads, where a chunk handed to a thread through a queue waits for a core without
-spinning on the other. Nor does a thread pool depend on numba's threading layer (no lock for its
-workqueue, no OpenMP rule against forking).
+spinning on the other. Nor does a thread pool depend on numba's threading layer (no lock
+for its workqueue, no OpenMP rule against forking).
 
 A hand-off costs tens of microseconds a kernel call, more than a small world's whole rod
 stage: :func:`plan` gives a world threads only when each chunk holds at least
