@@ -210,7 +210,7 @@ class Terms(NamedTuple):
 
 def evaluate(rods: RodSet, frames: Frames, x: np.ndarray, place: np.ndarray, out: Terms,
              ends: EndBodies, xmat: np.ndarray, strain_limit: float = np.inf, bands: np.ndarray | None = None,
-             band_of_rod: np.ndarray | None = None) -> int:
+             band_of_rod: np.ndarray | None = None, kernel=None) -> int:
     """Advance ``frames`` to positions ``x`` and fill ``out`` (one compiled call).
 
     x: vertex positions [m], shape (n_vertices, 3). place: each vertex's place in the
@@ -219,19 +219,23 @@ def evaluate(rods: RodSet, frames: Frames, x: np.ndarray, place: np.ndarray, out
     orientations (``data.xmat``), shape (n_bodies, 9). bands, band_of_rod: where rod i's
     Hessian goes, ``bands[band_of_rod[i]]`` (default: every rod into ``out.band``, the
     world's one band; :meth:`derods.Rod.step_terms` gives each rod a band of its own, with
-    ``place`` local to each rod). Returns the index of the first rod whose edge strain is
-    not finite or exceeds ``strain_limit``, else -1.
+    ``place`` local to each rod). kernel: a world's call of the compiled step
+    (:func:`derods._numba.parallel.kernel`: on threads, chunk by chunk, for a world of many
+    rods; the same results); default: one call for all rods. Returns the index of the
+    first rod whose edge strain is not finite or exceeds ``strain_limit``, else -1.
     """
     global _rods_step
-    if _rods_step is None:
-        from ._numba.calls import Bound
-        from ._numba.step import rods_step
+    if kernel is None:
+        if _rods_step is None:
+            from ._numba.calls import Bound
+            from ._numba.step import rods_step
 
-        _rods_step = Bound(rods_step)
+            _rods_step = Bound(rods_step)
+        kernel = _rods_step
     if bands is None:
         bands, band_of_rod = out.band[None], np.zeros(rods.n_rods, dtype=np.int64)
     out.strain[:] = strain_limit
-    return _rods_step(rods, ends, frames, x, xmat, place, bands, band_of_rod, out)
+    return kernel(rods, ends, frames, x, xmat, place, bands, band_of_rod, out)
 
 
 #: The compiled rod step, called without retyping the same bundles (derods._numba.calls).

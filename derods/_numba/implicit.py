@@ -189,6 +189,24 @@ def unconstrained_step(system, terms, places, params, qvel, xfrc_applied, v, oth
     sm_solve_into(system, a0)
 
 
+@nb.njit(cache=True, nogil=True)
+def unconstrained_chunk(system, terms, places, params, qvel, xfrc_applied, v, other, rhs, kv, a0, part):
+    """:func:`unconstrained_step` for one chunk of rods, ``part`` (a one-chunk
+    :class:`derods._numba.parallel.Split`): the same step on their block of A, which is
+    block diagonal over rods (their dofs [lo, hi), their twist terms t0 .. t1 - 1), through
+    views of the world's arrays. Each rod's arithmetic is that of one step of all rods, and
+    the call releases the GIL: the chunks of a world run at once on threads. (Entries of A
+    that couple the block to the rest are +0; the whole matrix's factor, products and
+    solves add or subtract only products with them, which leave every value as it is.)"""
+    lo, hi, t0, t1 = part.dofs[0], part.dofs[1], part.twists[0], part.twists[1]
+    block = System(system.k_band[:, lo:hi], system.mass[lo:hi], system.g[lo:hi], system.tw_rod[t0:t1],
+                   system.tw_lo[t0:t1] - lo, system.tw_hi[t0:t1] - lo, system.tw_c[t0:t1], system.a_band[:, lo:hi],
+                   system.lt[lo:hi], system.z[lo:hi], system.den[t0:t1], system.weights)
+    mine = Places(places.free_vertex[lo // 3:hi // 3], places.free_body[lo // 3:hi // 3], places.dofs[lo:hi])
+    unconstrained_step(block, terms, mine, params, qvel, xfrc_applied, v[lo:hi], other[lo:hi], rhs[lo:hi],
+                       kv[lo:hi], a0[lo:hi])
+
+
 @nb.njit(cache=True)
 def explicit_force(system, terms, places, params, qvel, v, kv, qfrc_applied):
     """The explicit step's force on the rod dofs, -grad - a_m M v - b K v [N], written into

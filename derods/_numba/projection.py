@@ -116,13 +116,40 @@ def limit_strain(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, 
     the constraint set is near) keeps its a0: the limit is a best effort, not a
     constraint. x, xp (n_vertices, 3): positions now and (scratch) predicted. Returns
     (rods projected, rods left as they were)."""
+    predict_held(x, place, v, a0, h, held_x, xp)
+    return limit_rods(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, limit, tol, max_iter, xp, 0,
+                      len(v_off) - 1)
+
+
+@nb.njit(cache=True, nogil=True)
+def limit_chunk(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, limit, tol, max_iter, xp, held_x,
+                chunk):
+    """:func:`limit_strain` for the rods chunk[0] .. chunk[1] - 1 (``chunk`` (2,), a chunk of a
+    :class:`derods._numba.parallel.Split`), predicting their vertices only; the call releases
+    the GIL, so that the chunks of a world run at once on threads."""
+    lo, hi = v_off[chunk[0]], v_off[chunk[1]]
+    predict_held(x[lo:hi], place[lo:hi], v, a0, h, held_x[lo:hi], xp[lo:hi])
+    return limit_rods(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, limit, tol, max_iter, xp,
+                      chunk[0], chunk[1])
+
+
+@nb.njit(cache=True)
+def predict_held(x, place, v, a0, h, held_x, xp):
+    """xp (n_vertices, 3) <- x + h (v + h a0) for the free vertices, held_x for the held ones."""
     predict_into(x, place, v, a0, h, xp)
     for vtx in range(x.shape[0]):
         if place[vtx] < 0:
             for a in range(3):
                 xp[vtx, a] = held_x[vtx, a]
+
+
+# Inlined into both callers, as derods._numba.step.rods_range.
+@nb.njit(cache=True, inline="always")
+def limit_rods(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, limit, tol, max_iter, xp, r0, r1):
+    """:func:`limit_strain` for rods r0 .. r1 - 1, their vertices predicted in xp: (rods
+    projected, rods left as they were)."""
     n_projected, n_left = 0, 0
-    for i in range(len(v_off) - 1):
+    for i in range(r0, r1):
         if not limited[i]:
             continue
         v0, v1 = v_off[i], v_off[i + 1]

@@ -135,6 +135,33 @@ def rods_step(rods, ends, frames, x, xmat, place, bands, band_of_rod, out):
     naturally curved (Newton twist solve). Returns the first rod whose largest |strain| is
     not finite or exceeds ``out.strain`` on entry, else -1 (out.strain (n_rods,): limit
     in, value out)."""
+    bands[:] = 0.0
+    return rods_range(rods, ends, frames, x, xmat, place, bands, band_of_rod, out, 0, len(rods.v_off) - 1)
+
+
+@nb.njit(cache=True, nogil=True)
+def rods_chunk(rods, ends, frames, x, xmat, place, bands, band_of_rod, out, chunk):
+    """:func:`rods_step` for the rods chunk[0] .. chunk[1] - 1 (``chunk`` (2,), a chunk of a
+    :class:`derods._numba.parallel.Split`): each of them zeroes its own places' columns of
+    its band, not the whole band, and writes only its own slices and columns; the call
+    releases the GIL, so that the chunks of a world run at once on threads. Returns the
+    first of them strained beyond ``out.strain`` (or not finite), else -1."""
+    v_off = rods.v_off
+    for i in range(chunk[0], chunk[1]):
+        ab = bands[band_of_rod[i]]
+        for vtx in range(v_off[i], v_off[i + 1]):
+            p = place[vtx]
+            if p >= 0:
+                ab[:, 3 * p:3 * p + 3] = 0.0
+    return rods_range(rods, ends, frames, x, xmat, place, bands, band_of_rod, out, chunk[0], chunk[1])
+
+
+# Inlined into both callers: called as a function, the whole-world step of a 20-edge
+# cantilever took 0.4 us more.
+@nb.njit(cache=True, inline="always")
+def rods_range(rods, ends, frames, x, xmat, place, bands, band_of_rod, out, r0, r1):
+    """:func:`rods_step` for rods r0 .. r1 - 1, their bands' columns zeroed: the first of
+    them strained beyond ``out.strain`` (or not finite), else -1."""
     # The bundles' fields read once: a field read in the loop costs a reference count per rod.
     v_off, e_off, rest_len, ks, kind, closed = rods.v_off, rods.e_off, rods.rest_len, rods.ks, rods.kind, rods.closed
     clamped, theta_first, theta_last = rods.clamped, rods.theta_first, rods.theta_last
@@ -142,16 +169,14 @@ def rods_step(rods, ends, frames, x, xmat, place, bands, band_of_rod, out):
     clamp_body, clamp_dir = ends.body, ends.director
     grad, g_tw, strain, energy, lam, coef, end_moment = out.grad, out.g_tw, out.strain, out.energy, out.lam, out.coef, \
         out.end_moment
-    n_rods = len(v_off) - 1
     max_nv = 0
-    for i in range(n_rods):
+    for i in range(r0, r1):
         max_nv = max(max_nv, v_off[i + 1] - v_off[i])
     work = Scratch(np.empty(max_nv), np.empty(max_nv), np.empty((max_nv, 3)), np.empty((3, 3)), np.empty((3, 3)),
                    np.empty((6, 6)), np.empty((6, 3, 3)))
     edge_len, blocks = work.edge_len, work.blocks
-    bands[:] = 0.0
     first_bad = -1
-    for i in range(n_rods):
+    for i in range(r0, r1):
         v0, v1 = v_off[i], v_off[i + 1]
         e0, e1 = e_off[i], e_off[i + 1]
         ab = bands[band_of_rod[i]]

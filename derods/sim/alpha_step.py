@@ -13,7 +13,7 @@ import numpy as np
 
 from .._numba import generalized_alpha as _ga
 from .._numba.calls import Bound
-from .._numba.projection import limit_strain, predict_into
+from .._numba.projection import predict_into
 from ..step import evaluate
 from . import generalized_alpha as ga
 from .divergence import MAX_STRAIN
@@ -89,9 +89,9 @@ class GeneralizedAlpha(Implicit):
         inv_mass = self._touching() if self.n_steps else self.inv_mass
         self._shift[:] = 0.0
         try:
-            n, _ = limit_strain(x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, inv_mass,
-                                self.layout.place, self._zero, self._shift, 1.0, self.limited, self.strain_limit,
-                                PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp, x)
+            n, _ = self._limit_kernel(x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, inv_mass,
+                                      self.layout.place, self._zero, self._shift, 1.0, self.limited,
+                                      self.strain_limit, PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp, x)
         except ValueError as err:  # the projection's banded Cholesky, in a state gone wild
             self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)
         if n:
@@ -138,7 +138,7 @@ class GeneralizedAlpha(Implicit):
             last = change
             predict_into(self.x, lay.place, self._zero, self._offset, 1.0, self._xp)
             evaluate(self.rods, fr, self._xp, lay.place, t, self.ends, self.xmat, MAX_STRAIN, self._bands,
-                     self._band_of_rod)
+                     self._band_of_rod, self._rods_step)
             self._solve(lay, t, s, c)
             self.solves += 1
         fr.u[:], fr.t[:], fr.theta[:], fr.theta_end[:] = saved.u, saved.t, saved.theta, saved.theta_end

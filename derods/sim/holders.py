@@ -265,7 +265,7 @@ class Holders:
         reads its blocks between free and held vertices without evaluating the rods
         again. Returns what :func:`derods.step.evaluate` does."""
         bad = evaluate(step.rods, step.frames, x, self._place_all, step.terms, step.ends, step.xmat, strain_limit,
-                       self._bands, self._band_of_rod)
+                       self._bands, self._band_of_rod, step._rods_step)
         free_band_into(self._bands, self._free_first, step.layout.dof_off, step.terms.band)
         self._fresh = True
         return bad

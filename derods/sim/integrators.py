@@ -28,8 +28,9 @@ import numpy as np
 
 from .._numba import coupling as _io
 from .._numba import implicit as _imp
-from .._numba.calls import Bound
-from .._numba.projection import limit_strain, projection_step, touching_into
+from .._numba import parallel
+from .._numba import step as _rods
+from .._numba.projection import limit_chunk, limit_strain, projection_step, touching_into
 from ..step import EndBodies, Frames, RodSet, Terms, evaluate
 from .clamps import Reactions
 from .contact import SUPPORTED, ContactStep, ReferenceCorrection
@@ -82,12 +83,13 @@ class Step:
         self.warnings = data.warning.number
         self.gravity = np.array(model.opt.gravity, dtype=float)
         self.params = _imp.StepParams(self.h, mass_damping, stiffness_damping, self.gravity)
-        self._unconstrained_step = Bound(_imp.unconstrained_step)  # the same bundles every step
         n = layout.n
         self.x = np.zeros_like(layout.x0)
         self.terms = Terms.empty(rods.n_rods, rods.n_vertices, n, layout.band_rows)
         tw = [i for i in range(rods.n_rods) if rods.kind[i] == 1 and rods.has_twist[i] and rods.clamped[i]]
         self.rod_tw = np.array(tw, dtype=np.int64)
+        # One chunk, no threads, for a world too small to gain from them.
+        self.use_split(parallel.plan(rods.v_off, layout.dof_off, self.rod_tw))
         self.system = ImplicitSystem(self.h, n, layout.mass, mass_damping, stiffness_damping, layout.band_rows,
                                      layout.dof_off[self.rod_tw], layout.dof_off[self.rod_tw + 1], self.rod_tw)
         self.system.k_band = self.terms.band  # the compiled step writes K's band in place
@@ -101,6 +103,20 @@ class Step:
         self._moving = len(layout.moved_vertex) > 0
         self._badqacc = int(self.warnings[mujoco.mjtWarning.mjWARN_BADQACC])
         self.n_steps = 0
+
+    def use_split(self, split: parallel.Split) -> None:
+        """Step the rods in the chunks of ``split`` (:class:`derods._numba.parallel.Split`,
+        over this world's rods), one a thread. The results are the same either way; the
+        world's compile chose by its size (:func:`derods._numba.parallel.plan`), and tests
+        and benchmarks change it to compare."""
+        self.split = split
+        self._rods_step = parallel.kernel(_rods.rods_step, _rods.rods_chunk, split, combine=parallel.first_bad)
+        self._unconstrained_step = parallel.kernel(_imp.unconstrained_step, _imp.unconstrained_chunk, split,
+                                                   bundle=True)
+        # The strain limit's second call of a step takes arrays made afresh (the contact
+        # solve's accelerations, the touching vertices' masses): numba's dispatcher types them.
+        self._limit_kernel = parallel.kernel(limit_strain, limit_chunk, split, combine=parallel.totals,
+                                             resolve=False)
 
     # -- the shared half ---------------------------------------------------------
     def positions(self) -> np.ndarray:
@@ -140,7 +156,7 @@ class Step:
         """Frames, twist, forces and the world's band at x (one compiled call); the index of
         a rod strained beyond MAX_STRAIN, else -1."""
         return evaluate(self.rods, self.frames, x, self.layout.place, self.terms, self.ends, self.xmat, MAX_STRAIN,
-                        self._bands, self._band_of_rod)
+                        self._bands, self._band_of_rod, self._rods_step)
 
     def check(self) -> None:
         """Divergence after the step: MuJoCo's bad-acceleration reset, NaN, runaway speed."""
@@ -328,9 +344,10 @@ class Implicit(Step):
             return 0
         inv_mass = self.inv_mass if inv_mass is None else inv_mass
         try:
-            n, _ = limit_strain(self.x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, inv_mass,
-                                self.layout.place, self.v, a, self.h, self.limited, self.strain_limit,
-                                PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp, self.x if held_x is None else held_x)
+            n, _ = self._limit_kernel(self.x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, inv_mass,
+                                      self.layout.place, self.v, a, self.h, self.limited, self.strain_limit,
+                                      PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp,
+                                      self.x if held_x is None else held_x)
         except ValueError as err:  # the projection's banded Cholesky, in a state gone wild
             self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)
         return n
