@@ -28,10 +28,11 @@ class FlexContacts(NamedTuple):
 
 
 class Tables(NamedTuple):
-    """The model's tables a contact side is read from, each with one entry more (read by a
-    side that is not of its kind): geom_body (ngeom + 1,), elem_adr, vert_adr (nflex + 1,)
-    (MuJoCo's flex_elemadr, flex_vertadr), elem_bodies (nflexelem + 1, 2) (a 1D element's
-    vertex bodies), vert_body (nflexvert + 1,); n_geom, n_elem: MuJoCo's ngeom, nflexelem."""
+    """The model's tables a contact side is read from: geom_body (ngeom + 1,), elem_adr,
+    vert_adr (nflex + 1,) (MuJoCo's flex_elemadr, flex_vertadr), vert_body (nflexvert + 1,),
+    each with one entry more, read by a side that is not of its kind; elem_bodies
+    (max(nflexelem, 1), 2) (a 1D element's vertex bodies, :func:`derods.sim.layout.
+    element_bodies`), read for element sides only; n_geom, n_elem: MuJoCo's ngeom, nflexelem."""
 
     geom_body: np.ndarray
     elem_adr: np.ndarray

@@ -51,6 +51,7 @@ from .._numba.dense import lu_solve, spd_factor
 from .._numba.implicit import sm_solve_columns_into, sm_solve_into
 from .contact import MAX_ITER, SUPPORTED, TOL, WINDOW, ContactStep, WithTrees
 from .holders import Holders
+from .layout import element_bodies
 
 #: A held point's arc (:meth:`CoupledStep._arc`) guessed off by more than this share of
 #: the shortest edge is solved again: the strain the miss leaves in a held edge.
@@ -361,14 +362,7 @@ def _element_holders(model: mujoco.MjModel, layout, bodies: np.ndarray) -> np.nd
     riding = np.isin(model.body_parentid[layout.moved_body], bodies)
     if not riding.any():
         return None
-    out = np.full((max(int(model.nflexelem), 1), 2), -1, dtype=np.int64)
-    parent_of = dict(zip(layout.moved_body[riding].tolist(), model.body_parentid[layout.moved_body[riding]].tolist()))
-    for f in range(model.nflex):
-        if model.flex_dim[f] != 1:
-            continue
-        adr, num = int(model.flex_elemdataadr[f]), int(model.flex_elemnum[f])
-        bodies = model.flex_vertbodyid[model.flex_vertadr[f] + model.flex_elem[adr:adr + 2 * num]].reshape(num, 2)
-        for e in range(num):
-            for side in (0, 1):
-                out[model.flex_elemadr[f] + e, side] = parent_of.get(int(bodies[e, side]), -1)
-    return out
+    holder_of = np.full(model.nbody, -1, dtype=np.int64)  # each riding vertex body's holder
+    holder_of[layout.moved_body[riding]] = model.body_parentid[layout.moved_body[riding]]
+    elem = element_bodies(model)
+    return np.where(elem >= 0, holder_of[np.maximum(elem, 0)], -1)

@@ -50,6 +50,7 @@ import mujoco
 import numpy as np
 
 from .._numba.friction import Anchors, FlexContacts, Tables, anchor, no_anchors, reanchor_slipping
+from .layout import element_bodies
 
 _PYRAMIDAL = int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL)
 #: A contact whose friction rows carry all but this share of its force slips.
@@ -77,16 +78,9 @@ class StaticFriction:
         self._contacts = None
         if not self.enabled:
             return
-        elem_bodies = np.full((model.nflexelem + 1, 2), 0, dtype=np.int64)
-        for f in range(model.nflex):
-            if model.flex_dim[f] != 1:
-                continue
-            adr, num = int(model.flex_elemdataadr[f]), int(model.flex_elemnum[f])
-            verts = model.flex_elem[adr:adr + 2 * num].reshape(num, 2) + model.flex_vertadr[f]
-            elem_bodies[model.flex_elemadr[f]:model.flex_elemadr[f] + num] = model.flex_vertbodyid[verts]
         pad = lambda a: np.append(a, 0).astype(np.int64)  # noqa: E731
-        self.tables = Tables(pad(model.geom_bodyid), pad(model.flex_elemadr), pad(model.flex_vertadr), elem_bodies,
-                             pad(model.flex_vertbodyid), int(model.ngeom), int(model.nflexelem))
+        self.tables = Tables(pad(model.geom_bodyid), pad(model.flex_elemadr), pad(model.flex_vertadr),
+                             element_bodies(model), pad(model.flex_vertbodyid), int(model.ngeom), int(model.nflexelem))
 
     def __bool__(self) -> bool:
         return self.enabled

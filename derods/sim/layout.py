@@ -97,6 +97,19 @@ def arena_budget(n_dofs: int, n_bodies_flexes: int) -> int:
     return ARENA_BASE + ARENA_PER_DOF * n_dofs + 2 * n_bodies_flexes ** 2
 
 
+def element_bodies(model: mujoco.MjModel) -> np.ndarray:
+    """The two vertex bodies of every element of the model's 1D flexes (the rods' edges),
+    int64, shape (max(nflexelem, 1), 2); -1 for the elements of other flexes."""
+    out = np.full((max(int(model.nflexelem), 1), 2), -1, dtype=np.int64)
+    for f in range(model.nflex):
+        if model.flex_dim[f] != 1:
+            continue
+        adr, num = int(model.flex_elemdataadr[f]), int(model.flex_elemnum[f])
+        verts = model.flex_elem[adr:adr + 2 * num].reshape(num, 2) + model.flex_vertadr[f]
+        out[model.flex_elemadr[f]:model.flex_elemadr[f] + num] = model.flex_vertbodyid[verts]
+    return out
+
+
 def add_to_spec(spec: mujoco.MjSpec, entries: list[RodEntry], contact, collide: bool) -> None:
     """Add every rod's bodies, slide joints and collision flex to ``spec``.
 
