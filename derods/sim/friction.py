@@ -46,6 +46,8 @@ in derods' solve would remove that.
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import mujoco
 import numpy as np
 
@@ -76,11 +78,15 @@ class StaticFriction:
         self.enabled = bool(np.any(model.flex_dim == 1)) if model.nflex else False
         self.state = no_anchors()
         self._contacts = None
-        if not self.enabled:
-            return
+
+    @cached_property
+    def tables(self) -> Tables:
+        """The model's tables the anchors read (:class:`derods._numba.friction.Tables`), made
+        at the first anchored step: a world with static friction off never makes them."""
+        m = self.model
         pad = lambda a: np.append(a, 0).astype(np.int64)  # noqa: E731
-        self.tables = Tables(pad(model.geom_bodyid), pad(model.flex_elemadr), pad(model.flex_vertadr),
-                             element_bodies(model), pad(model.flex_vertbodyid), int(model.ngeom), int(model.nflexelem))
+        return Tables(pad(m.geom_bodyid), pad(m.flex_elemadr), pad(m.flex_vertadr), element_bodies(m),
+                      pad(m.flex_vertbodyid), int(m.ngeom), int(m.nflexelem))
 
     def __bool__(self) -> bool:
         return self.enabled
