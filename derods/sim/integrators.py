@@ -42,6 +42,7 @@ from .holders import Holders
 from .implicit import ImplicitSystem
 from .projection import PROJECTION_MAX_ITER, PROJECTION_TOL
 from .layout import Layout, RodEntry
+from .prescribed import PrescribedVertices
 
 #: The implicit step's default strain limit [relative edge strain] (World's
 #: ``strain_limit``). Its stiff stretching term is linearized, so an edge that turns by
@@ -101,6 +102,9 @@ class Step:
         self._kv = np.zeros(n)
         self.reactions = Reactions(model, layout, entries, rods.e_off)
         self._moving = len(layout.moved_vertex) > 0
+        #: Held vertices the user moves between steps (mocap bodies): their edges' strain
+        #: at the step's start is the user's, not a divergence (derods.sim.prescribed).
+        self.prescribed = PrescribedVertices(model, layout, rods)
         self._badqacc = int(self.warnings[mujoco.mjtWarning.mjWARN_BADQACC])
         self.n_steps = 0
 
@@ -147,6 +151,10 @@ class Step:
         """Frames, twist, forces and band of every rod at positions x (n_vertices, 3) [m],
         the strain check, and the rods' reactions on their holders."""
         bad = self._evaluate(x)
+        if bad >= 0 and self.prescribed:
+            bad = self.prescribed.strained(x, self.terms.strain, MAX_STRAIN)
+        if self.prescribed:
+            self.prescribed.remember(x)
         if bad >= 0:
             self.diagnosis.strain(bad, float(self.terms.strain[bad]), self.n_steps, self.data.time)
         if self.reactions:
@@ -188,6 +196,8 @@ class Step:
         out = [fr.u, fr.t, fr.theta]
         if self._moving:
             out.append(fr.theta_end)  # clamps on moving bodies
+        if self.prescribed:
+            out.append(self.prescribed.before)
         if self.reactions:
             # What the rods put on their holders: added to qfrc_applied, the last step's removed.
             out += [self.reactions._applied, self.qfrc_applied]
@@ -342,12 +352,21 @@ class Implicit(Step):
         rod that cannot be, held taut between pins, keeps its step)."""
         if not self.limited.any() or math.isinf(self.strain_limit):
             return 0
-        inv_mass = self.inv_mass if inv_mass is None else inv_mass
+        held_x = self.x if held_x is None else held_x
         try:
-            n, _ = self._limit_kernel(self.x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, inv_mass,
-                                      self.layout.place, self.v, a, self.h, self.limited, self.strain_limit,
-                                      PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp,
-                                      self.x if held_x is None else held_x)
+            n, left = self._limit_kernel(self.x, self.rods.v_off, self.rods.e_off, self.rods.rest_len,
+                                         self.inv_mass if inv_mass is None else inv_mass, self.layout.place, self.v,
+                                         a, self.h, self.limited, self.strain_limit, PROJECTION_TOL,
+                                         PROJECTION_MAX_ITER, self._xp, held_x)
+            if left and inv_mass is not None:
+                # Touching vertices made 100x lighter can leave the projection too ill-conditioned
+                # to converge (a cable jerked along a floor by a mocap cart, 5 mm edges moved 6 mm
+                # a step: 55 iterations, 4 with its own masses): those rods are projected by their
+                # own masses instead, rather than kept strained (0.5 there, then stopped as diverged).
+                n += self._limit_kernel(self.x, self.rods.v_off, self.rods.e_off, self.rods.rest_len,
+                                        self.inv_mass, self.layout.place, self.v, a, self.h, self.limited,
+                                        self.strain_limit, PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp,
+                                        held_x)[0]
         except ValueError as err:  # the projection's banded Cholesky, in a state gone wild
             self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)
         return n
