@@ -10,6 +10,13 @@ import numpy as np
 from .banded import cholesky_into, solve_into
 
 
+#: Turning edges: the relative lengthening [-] beyond which a predicted edge is brought
+#: back to the length the linearized step gave it (see :func:`limit_strain`): 1e-9 is an
+#: edge turning 4.5e-5 rad in a step; what is left acts as a tension of k_s 1e-9 (3e-4 N
+#: for an inextensible 3 mm rod).
+TURNED_TOL = 1e-9
+
+
 @nb.njit(cache=True)
 def project_rod(x, inv_mass, rest_len, tol, max_iter):
     """Project x (n_vertices, 3) in place, moving vertex j by inv_mass[j] (0: held);
@@ -110,12 +117,23 @@ def limit_strain(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, 
     """Strain limiting of the implicit step: predict x + h (v + h a0) for the free
     vertices and held_x (n_vertices, 3) for the held ones (where their bodies take them;
     x for the world's); every rod flagged in ``limited`` (n_rods,) whose predicted edge strain
-    exceeds ``limit`` is projected onto its rest lengths (to ``tol``) and its free dofs'
-    a0 (n,) [m/s^2] replaced by the acceleration that lands there. A rod the projection
-    cannot bring there in ``max_iter`` iterations (held taut between pins: no point of
-    the constraint set is near) keeps its a0: the limit is a best effort, not a
-    constraint. x, xp (n_vertices, 3): positions now and (scratch) predicted. Returns
-    (rods projected, rods left as they were)."""
+    exceeds ``limit`` is projected onto its rest lengths rest_len (n_edges,) [m] (to
+    ``tol``), and for rods flagged 2 every other one whose edges the step turned onto the
+    lengths the linearized step gave them (onto the rest lengths if those are strained
+    beyond ``limit``), and its free dofs' a0 (n,) [m/s^2] replaced by the acceleration
+    that lands there.
+
+    An edge turned by phi in a linearized step comes out 1 / cos(phi) longer than the
+    step meant (its length along the edge now, t . (predicted edge)); read at the next
+    step as tension, k_s phi^2 / 2, that lengthening held turning edges still (an
+    inextensible rod rotating freely at 1 rad/s, dt 1e-2: 0.117 rad of 0.5 in 0.5 s). So
+    the edges are brought to their first-order lengths, once any edge of the rod is
+    TURNED_TOL longer than that; the tension the step meant stays.
+
+    A rod the projection cannot bring there in ``max_iter`` iterations (held taut between
+    pins: no point of the constraint set is near) keeps its a0: the limit is a best
+    effort, not a constraint. x, xp (n_vertices, 3): positions now and (scratch)
+    predicted. Returns (rods projected, rods left as they were)."""
     predict_held(x, place, v, a0, h, held_x, xp)
     return limit_rods(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, limit, tol, max_iter, xp, 0,
                       len(v_off) - 1)
@@ -150,19 +168,30 @@ def limit_rods(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, li
     projected, rods left as they were)."""
     n_projected, n_left = 0, 0
     for i in range(r0, r1):
-        if not limited[i]:
+        if limited[i] == 0:
             continue
         v0, v1 = v_off[i], v_off[i + 1]
-        e0 = e_off[i]
-        worst = 0.0
-        for j in range(v1 - v0 - 1):
+        e0, ne = e_off[i], v1 - v0 - 1
+        target = np.empty(ne)
+        worst, turned, first = 0.0, 0.0, 0.0
+        for j in range(ne):
             d0 = xp[v0 + j + 1, 0] - xp[v0 + j, 0]
             d1 = xp[v0 + j + 1, 1] - xp[v0 + j, 1]
             d2 = xp[v0 + j + 1, 2] - xp[v0 + j, 2]
-            worst = max(worst, abs(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) / rest_len[e0 + j] - 1.0))
-        if worst <= limit:
+            length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            worst = max(worst, abs(length / rest_len[e0 + j] - 1.0))
+            # the predicted edge along the edge now: the length the linearized step meant
+            c0 = x[v0 + j + 1, 0] - x[v0 + j, 0]
+            c1 = x[v0 + j + 1, 1] - x[v0 + j, 1]
+            c2 = x[v0 + j + 1, 2] - x[v0 + j, 2]
+            target[j] = (c0 * d0 + c1 * d1 + c2 * d2) / np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+            turned = max(turned, (length - target[j]) / rest_len[e0 + j])
+            first = max(first, abs(target[j] / rest_len[e0 + j] - 1.0))
+        if worst > limit or (limited[i] == 2 and first > limit):
+            target[:] = rest_len[e0:e0 + ne]
+        elif limited[i] == 1 or not turned > TURNED_TOL:
             continue
-        if project_rod(xp[v0:v1], inv_mass[v0:v1], rest_len[e0:e_off[i + 1]], tol, max_iter) < 0:
+        if project_rod(xp[v0:v1], inv_mass[v0:v1], target, tol, max_iter) < 0:
             n_left += 1
             continue
         n_projected += 1

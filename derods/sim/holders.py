@@ -223,7 +223,8 @@ class Holders:
         self.held = reactions.held_vertex[coupled]
         #: The vertex body of each held vertex (riding its holder).
         self.held_body = np.asarray(layout.body, dtype=np.int64)[self.held]
-        self._rod_of_held = np.searchsorted(rods.v_off, self.held, side="right") - 1
+        #: The rod of each held vertex.
+        self.rod_of_held = np.searchsorted(rods.v_off, self.held, side="right") - 1
         # Every vertex's place in its own rod's band, held ones included: the Gauss-Newton
         # blocks between free and held vertices come from the compiled step itself.
         nvs = np.diff(rods.v_off)
@@ -275,13 +276,13 @@ class Holders:
         band of a held vertex (static: the layout fixes them; see :func:`band_entries`)."""
         reach = band_rows // 3 + 1  # vertices either side within reach of the band
         pairs = [(rod, self._place_all[v], self._place_all[h], layout.place[v], c)
-                 for c, (h, rod) in enumerate(zip(self.held, self._rod_of_held))
+                 for c, (h, rod) in enumerate(zip(self.held, self.rod_of_held))
                  for v in range(max(v_off[rod], h - reach), min(v_off[rod + 1], h + reach + 1)) if layout.place[v] >= 0]
         return band_entries(pairs, band_rows)
 
     def _held_entries(self, band_rows: int) -> tuple[np.ndarray, ...]:
         """Where K_hh's entries sit in the bands: the blocks among the held vertices of one rod."""
-        held = list(enumerate(zip(self.held, self._rod_of_held)))
+        held = list(enumerate(zip(self.held, self.rod_of_held)))
         pairs = [(r1, self._place_all[h1], self._place_all[h2], c1, c2)
                  for c1, (h1, r1) in held for c2, (h2, r2) in held if r1 == r2]
         return band_entries(pairs, band_rows)
@@ -398,10 +399,10 @@ class Holders:
                      self._bands, self._band_of_rod)
         out = gather(self._bands, self._blocks, (lay.n, 3 * len(self.held)))
         if self._twisted is None:  # which held vertices' rods are held at both ends (fixed at compile)
-            self._twisted = np.flatnonzero(np.isin(self._rod_of_held, step.rod_tw))
+            self._twisted = np.flatnonzero(np.isin(self.rod_of_held, step.rod_tw))
         v_off = step.rods.v_off
         for c in self._twisted:
-            h, rod = self.held[c], self._rod_of_held[c]
+            h, rod = self.held[c], self.rod_of_held[c]
             lo, hi = v_off[rod], v_off[rod + 1]
             free = lay.place[lo:hi] >= 0
             g_f = np.zeros(lay.n)
