@@ -102,3 +102,12 @@ def gather_into(bands, band, d, j, row, col, out):
     out[:] = 0.0
     for p in range(len(band)):
         out[row[p], col[p]] = bands[band[p], d[p], j[p]]
+
+
+@nb.njit(cache=True)
+def band_product_into(bands, band, d, j, row, col, vec, out):
+    """out[row[p]] += bands[band[p], d[p], j[p]] vec[col[p]] for every p: a block of symmetric
+    matrices kept as lower bands, placed as :func:`derods.sim.holders.band_entries` indexed
+    them, times vec (without making the block dense)."""
+    for p in range(len(band)):
+        out[row[p]] += bands[band[p], d[p], j[p]] * vec[col[p]]

@@ -48,6 +48,8 @@ class GeneralizedAlpha(Implicit):
 
     def __init__(self, *args, rho_inf: float = ga.RHO_INF, **kwargs):
         super().__init__(*args, **kwargs)
+        #: Its Newton iterations take the forces at the held vertices' new places.
+        self.prescribes = False
         self.coefficients = ga.Coefficients.from_rho_inf(rho_inf)
         self._alpha_step = Bound(_ga.alpha_step)  # the same bundles every step
         self.a_prev = np.zeros(self.layout.n)

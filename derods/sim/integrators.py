@@ -105,6 +105,9 @@ class Step:
         #: Held vertices the user moves between steps (mocap bodies): their edges' strain
         #: at the step's start is the user's, not a divergence (derods.sim.prescribed).
         self.prescribed = PrescribedVertices(model, layout, rods)
+        #: The positions the step starts from (self.x, or where the last step ended if the
+        #: prescribed vertices moved since and the mode takes their move in the step).
+        self.x_start = self.x
         self._badqacc = int(self.warnings[mujoco.mjtWarning.mjWARN_BADQACC])
         self.n_steps = 0
 
@@ -147,12 +150,20 @@ class Step:
         in a mode that moves them first (generalized-alpha's strain limit)."""
         return x
 
+    #: Whether the mode takes prescribed vertices' moves in its step (derods.sim.prescribed);
+    #: else it takes the forces where the user put them.
+    prescribes = False
+
     def forces(self, x: np.ndarray) -> None:
         """Frames, twist, forces and band of every rod at positions x (n_vertices, 3) [m],
         the strain check, and the rods' reactions on their holders."""
-        bad = self._evaluate(x)
-        if bad >= 0 and self.prescribed:
-            bad = self.prescribed.strained(x, self.terms.strain, MAX_STRAIN)
+        self.x_start = x
+        if self.prescribes and self.prescribed.moved(x):
+            bad, self.x_start = self.prescribed.evaluate(self, x)
+        else:
+            bad = self._evaluate(x)
+            if bad >= 0 and self.prescribed:
+                bad = self.prescribed.strained(x, self.terms.strain, MAX_STRAIN)
         if self.prescribed:
             self.prescribed.remember(x)
         if bad >= 0:
@@ -241,6 +252,7 @@ class Implicit(Step):
         self.contact = ContactStep(self.model, self.layout.local_of_dof, self.layout.dof_off, self.layout.n,
                                    self.layout.band_rows, self.holders.trees)
         self.coupled = CoupledStep(self.model, self.layout, self.holders, self.contact) if self.holders else None
+        self.prescribes = not self.holders and self.prescribed.in_step
         #: MuJoCo's forward pass, its constraint solver skipped where derods solves every row:
         #: rows on the rods' dofs, and on their holders' trees (solved with them).
         solved = self.layout.local_of_dof >= 0
@@ -366,7 +378,7 @@ class Implicit(Step):
         held_x = self.x if held_x is None else held_x
         limited = self.limited if inv_mass is None else self._limited_rest
         try:
-            n, left = self._limit_kernel(self.x, self.rods.v_off, self.rods.e_off, self.rods.rest_len,
+            n, left = self._limit_kernel(self.x_start, self.rods.v_off, self.rods.e_off, self.rods.rest_len,
                                          self.inv_mass if inv_mass is None else inv_mass, self.layout.place, self.v,
                                          a, self.h, limited, self.strain_limit, PROJECTION_TOL,
                                          PROJECTION_MAX_ITER, self._xp, held_x)
@@ -375,7 +387,7 @@ class Implicit(Step):
                 # to converge (a cable jerked along a floor by a mocap cart, 5 mm edges moved 6 mm
                 # a step: 55 iterations, 4 with its own masses): those rods are projected by their
                 # own masses instead, rather than kept strained (0.5 there, then stopped as diverged).
-                n += self._limit_kernel(self.x, self.rods.v_off, self.rods.e_off, self.rods.rest_len,
+                n += self._limit_kernel(self.x_start, self.rods.v_off, self.rods.e_off, self.rods.rest_len,
                                         self.inv_mass, self.layout.place, self.v, a, self.h, limited,
                                         self.strain_limit, PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp,
                                         held_x)[0]

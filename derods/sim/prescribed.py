@@ -1,21 +1,35 @@
 """Rod vertices whose motion the user prescribes: held by bodies without dofs that move.
 
 A vertex pinned (or an edge clamped) to a mocap body, or to a body welded to one, goes
-wherever the user puts that body between two steps: a mocap cart whose target starts
-at 0.6 m/s moves 6 mm in the first step of dt 1e-2, more than a 5 mm edge. The step
-finds the held vertex there and its free neighbour where the last step left it, so the
-edge between them starts the step stretched by the user's motion, not by anything the
-last step did (measured: a 0.5 m cable of 100 edges on such a cart started its second
-step at strain 1.18 and was stopped as diverged; let through, the implicit step pulled
-the cable after the cart and the strain was back under 1e-3 after that step).
+wherever the user puts that body between two steps. Taken where it is now, with the free
+vertices where the last step left them, the held edge starts the step turned (and, moved
+more than an edge, stretched) by the user's move alone, and the stiff stretching's one
+linearization about that kinked pose held the rod back: a 0.5 m rod of 100 edges pinned
+to a hand moving sideways at 0.1 m/s (dt 1e-3, zero gravity) reached a mean velocity of
+-0.94 m/s, backwards, in 0.1 s (at dt 1e-4 +0.04 m/s; the same rod held by a body on a
+slide, its motion solved in the step, +0.04 at every dt). Backward Euler's Newton
+iterations from that pose reach the right answer in three; the coupled holders of
+:mod:`derods.sim.holders` get it in one, linearizing where the last step ended and
+moving the held vertices within the step. So does this:
 
-The divergence check's strain limit (:data:`derods.sim.divergence.MAX_STRAIN`) is meant
-for what a step did; so a rod found strained beyond it is measured again with its
-prescribed vertices where they were when the last step began (the pose that step
-solved with), and stopped only if it is strained there too. The forces themselves stay
-at the held vertices' new places: linearized there the step sees the edge's new
-direction (linearized at the old pose, a sideways move of the holder would have no
-stretching force against it, the Gauss-Newton blocks being along the edge).
+    (M + h^2 K_ff) a = F(x_last) - K_fh d - h K_ff v
+
+with x_last the rods where the last step ended (the prescribed vertices where the last
+step began) and d the prescribed vertices' move since: K_fh d, the rods' force change along
+the move, from the Gauss-Newton blocks between free and prescribed vertices that the
+compiled step computes anyway (every vertex given a place in its rod's band, the world's
+band sliced from those, as the coupled holders do; the same blocks as K_ff, so that the
+hand carrying the rod rigidly costs no force: exact differences there, not matching the
+band's Gauss-Newton blocks, made a cable lifted off a table at dt 1e-2 hop and diverge).
+A clamp's frame turns with its body at once (the twist its turn imposes acts in the step
+it happens). The strain limit then measures the step's edges from x_last, held vertices
+predicted at their new places. Rods in a world where bodies with dofs hold rods, and a
+world with a ring, keep the other way: taken at the new pose, a stretched held edge
+forgiven (:meth:`PrescribedVertices.strained`).
+
+A step's strain check (:data:`derods.sim.divergence.MAX_STRAIN`) is on x_last, what the
+last step did: a hand moved 6 mm in a step along a cable of 5 mm edges (a mocap cart whose
+target starts at 0.6 m/s, dt 1e-2) is not a divergence.
 """
 
 from __future__ import annotations
@@ -23,7 +37,10 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from ..step import RodSet
+from .._numba.coupling import band_product_into, free_band_into
+from ..step import RodSet, evaluate
+from .divergence import MAX_STRAIN
+from .holders import band_entries
 from .layout import Layout
 
 
@@ -54,12 +71,68 @@ class PrescribedVertices:
         self.vertex, self.rod = layout.moved_vertex[keep], rod[keep]
         self.before = layout.x0[self.vertex].copy()
         self._rods = rods
+        self._x_last = np.zeros_like(layout.x0)
+        #: Whether a step can take the move in it (:meth:`evaluate`): every rod open (a rod's
+        #: free vertices then keep their order in the band of all its vertices).
+        self.in_step = bool(len(self.vertex)) and not rods.closed.any()
+        if not self.in_step:
+            return
+        # Every vertex's place in its own rod's band, prescribed ones included: the
+        # Gauss-Newton blocks K_fh between free and prescribed vertices come from the
+        # compiled step itself (the world's band is sliced from those bands).
+        nvs = np.diff(rods.v_off)
+        self._place_all = np.concatenate([np.arange(n) for n in nvs]).astype(np.int64)
+        self._bands = np.zeros((rods.n_rods, layout.band_rows, 3 * int(nvs.max())))
+        self._band_of_rod = np.arange(rods.n_rods, dtype=np.int64)
+        self._free_first = np.array([int(np.argmax(layout.place[rods.v_off[i]:rods.v_off[i + 1]] >= 0))
+                                     for i in range(rods.n_rods)], dtype=np.int64)
+        reach = layout.band_rows // 3 + 1  # vertices either side within the band
+        pairs = [(i, w - rods.v_off[i], v - rods.v_off[i], layout.place[w], c)
+                 for c, (v, i) in enumerate(zip(self.vertex, self.rod))
+                 for w in range(max(rods.v_off[i], v - reach), min(rods.v_off[i + 1], v + reach + 1))
+                 if layout.place[w] >= 0]
+        self._blocks = band_entries(pairs, layout.band_rows)
+        self._kd = np.zeros(layout.n)
+        self._twisted = np.flatnonzero(np.isin(self.rod, np.flatnonzero(rods.clamped & rods.has_twist))
+                                       & np.array([rods.kind[i] == 1 for i in self.rod], dtype=bool))
 
     def __bool__(self) -> bool:
         return len(self.vertex) > 0
 
+    def moved(self, x: np.ndarray) -> bool:
+        """Whether any prescribed vertex moved since the last step began."""
+        return not np.array_equal(x[self.vertex], self.before)
+
+    def evaluate(self, step, x: np.ndarray) -> tuple[int, np.ndarray]:
+        """The rods' forces and band for a step whose prescribed vertices moved to where x
+        (n_vertices, 3) [m] has them: evaluated at x_last (the prescribed vertices where
+        the last step began), the rods' force change along the move, K_fh d, added to the
+        gradient (see the module's docstring), into ``step.terms`` and ``step.frames``.
+        Returns (the first rod strained beyond MAX_STRAIN at x_last, or -1; x_last, shape
+        (n_vertices, 3))."""
+        lay, x_last = step.layout, self._x_last
+        x_last[:] = x
+        x_last[self.vertex] = self.before
+        bad = evaluate(step.rods, step.frames, x_last, self._place_all, step.terms, step.ends, step.xmat, MAX_STRAIN,
+                       self._bands, self._band_of_rod, step._rods_step)
+        free_band_into(self._bands, self._free_first, lay.dof_off, step.terms.band)
+        move = (x[self.vertex] - self.before).ravel()
+        kd = self._kd
+        kd[:] = 0.0
+        band_product_into(self._bands, *self._blocks, move, kd)
+        for c in self._twisted:  # a rod held at both ends: its rank-one twist term couples them too
+            rod, v = self.rod[c], self.vertex[c]
+            lo, hi = step.rods.v_off[rod], step.rods.v_off[rod + 1]
+            free = lay.place[lo:hi] >= 0
+            g = step.terms.g_tw
+            kd.reshape(-1, 3)[lay.place[lo:hi][free]] += (step.terms.coef[rod] * (g[v] @ move[3 * c:3 * c + 3])
+                                                          * g[lo:hi][free])
+        step.terms.grad[lay.free_vertex] += kd.reshape(-1, 3)
+        return bad, x_last
+
     def remember(self, x: np.ndarray) -> None:
-        """Keep their positions in x (n_vertices, 3) [m], the ones this step begins from."""
+        """Keep the prescribed vertices' positions in x (n_vertices, 3) [m], where this step
+        begins."""
         self.before[:] = x[self.vertex]
 
     def strained(self, x: np.ndarray, strain: np.ndarray, limit: float) -> int:
