@@ -23,6 +23,7 @@ import mujoco
 import numpy as np
 
 from .. import validation
+from ..sim.exclusion import ExcludedPair
 from . import cable_geometry as geo
 from . import mjcf_cable, mjcf_equality, mjcf_flexcomp, mjcf_keys, mjcf_xml
 from .mjcf_cable import CableDecl
@@ -137,7 +138,7 @@ def load(path: str, rods_from: str = "composite") -> tuple[mujoco.MjSpec, list[C
     _check_references(root, inner)
     spec = _spec(root, path)
     _to_world(spec, decls)
-    return spec, Declared(decls, keys=keys)
+    return spec, Declared(decls, keys=keys, excludes=_excluded(root, decls))
 
 
 class Declared(list):
@@ -145,9 +146,37 @@ class Declared(list):
     the scene's joints (:mod:`derods.io.mjcf_keys`), written into the compiled model by
     :func:`finish_model`."""
 
-    def __init__(self, decls=(), keys=None):
+    def __init__(self, decls=(), keys=None, excludes=()):
         super().__init__(decls)
         self.keys = keys or {}
+        #: Contact excludes naming a cable's B_first or B_last, as the rods' end edges'
+        #: (:class:`derods.sim.exclusion.ExcludedPair`; World applies them).
+        self.excludes = list(excludes)
+
+
+def _excluded(root: ET.Element, decls: list[CableDecl]) -> list[ExcludedPair]:
+    """The pairs of a file's ``<contact><exclude>`` elements that name a cable's ``B_first``
+    or ``B_last``: in MuJoCo 3.x the cable's first or last segment, here the rod's first or
+    last edge, kept from colliding with the other body (or the other cable's end edge)."""
+    ends = {}
+    for d in decls:
+        if d.initial is not None:
+            ends[f"{d.prefix}B_first"] = (d.name, 0)
+            ends[f"{d.prefix}B_last"] = (d.name, len(d.x) - 2)
+    out = []
+    for contact in root.findall("contact"):
+        for ex in contact.findall("exclude"):
+            a, b = ex.get("body1"), ex.get("body2")
+            if a not in ends and b in ends:
+                a, b = b, a
+            if a not in ends:
+                continue
+            rod, edge = ends[a]
+            if b in ends:
+                out.append(ExcludedPair(rod, (edge,), other_rod=ends[b][0], other_elements=(ends[b][1],)))
+            else:
+                out.append(ExcludedPair(rod, (edge,), body=b))
+    return out
 
 
 def _spec(root: ET.Element, path: str) -> mujoco.MjSpec:

@@ -23,6 +23,7 @@ from ..rod import RodState
 from ..step import Frames, RodSet
 from .alpha_step import GeneralizedAlpha
 from .clamps import end_bodies
+from .exclusion import Exclusions
 from .integrators import Explicit, Implicit, Projection
 from .layout import PROGRESS_FROM, Layout, RodEntry, add_to_spec
 from .scene_checks import fall_step, starts_inside, stretched_words, thin_geoms
@@ -94,11 +95,22 @@ def check_integrator(model: mujoco.MjModel, mode: str) -> None:
 
 
 def make_step(mode: str, model, data, layout, entries, rods, fr, ends, mass_damping: float,
-              stiffness_damping: float, diagnosis, strain_limit: float | None, contact):
+              stiffness_damping: float, diagnosis, strain_limit: float | None, contact, excludes=()):
     """The step of ``mode`` (:data:`STEPS`), with the World's strain limit (None keeps the
-    step's default) and what of its :class:`~derods.sim.contact_params.ContactParams` the
-    step reads (whether held edges touch their holders, static friction)."""
+    step's default), what of its :class:`~derods.sim.contact_params.ContactParams` the
+    step reads (whether held edges touch their holders, static friction) and the contacts
+    it excludes (:class:`derods.sim.exclusion.ExcludedPair`: where the mode runs MuJoCo's
+    forward pass in stages, the implicit and alpha modes; the others warn)."""
     step = STEPS[mode](model, data, layout, entries, rods, fr, ends, mass_damping, stiffness_damping, diagnosis)
+    if excludes:
+        exclusions = Exclusions(model, list(excludes))
+        if getattr(step, "forward", None) is not None and (mode != "projection" or step.holders):
+            step.forward.exclusions = exclusions
+        else:
+            warnings.warn(f"mode {mode!r} steps with mj_step, which cannot leave out contacts between a rod's end "
+                          f"edges and a body (the file's contact excludes naming B_first or B_last): they collide; "
+                          "mode 'implicit' (the default) or 'alpha' honour them", validation.SceneWarning,
+                          stacklevel=4)
     if strain_limit is not None:
         step.strain_limit = strain_limit
     if getattr(step, "coupled", None) is not None:

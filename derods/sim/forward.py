@@ -50,25 +50,30 @@ class Forward:
         self.sensors = model.nsensor > 0
         #: Whether the last call skipped MuJoCo's constraint solver.
         self.skipped = False
+        #: Contacts the world excludes after MuJoCo's collision (:mod:`derods.sim.exclusion`).
+        self.exclusions = None
 
     def __call__(self, d: mujoco.MjData) -> None:
         """MuJoCo's forward pass on d, its constraint solver skipped where derods solves
         every row (see the module docstring)."""
         m = self.model
         self.skipped = False
-        if not self.enabled:
+        if not self.enabled and not self.exclusions:
             mujoco.mj_forward(m, d)
             return
         # mj_forward's own sequence, split after the rows are made: the position stage
         # here, the rest by mj_forwardSkip (flags reset as mj_forward resets them)
         d.flg_energypos = d.flg_energyvel = d.flg_rnepost = d.flg_subtreevel = 0
         mujoco.mj_fwdPosition(m, d)
+        if self.exclusions:
+            self.exclusions(d)
         if self.sensors:
             mujoco.mj_sensorPos(m, d)
         if self.energy:
             mujoco.mj_energyPos(m, d)
-        if not d.nefc or not rods_solve_all(self.is_sparse, d.nefc, m.nv, d.efc_J, d.efc_J_rownnz, d.efc_J_rowadr,
-                                            d.efc_J_colind, d.efc_type, self.supported, self.solved_dof):
+        if not self.enabled or not d.nefc or not rods_solve_all(self.is_sparse, d.nefc, m.nv, d.efc_J, d.efc_J_rownnz,
+                                                                d.efc_J_rowadr, d.efc_J_colind, d.efc_type,
+                                                                self.supported, self.solved_dof):
             mujoco.mj_forwardSkip(m, d, int(mujoco.mjtStage.mjSTAGE_POS), 0)
             return
         mujoco.mj_fwdVelocity(m, d)

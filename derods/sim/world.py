@@ -167,7 +167,7 @@ class World:
         diagnosis = Diagnosis(layout.names, h, self.mode, self.mass_damping, excess)
         self._step = compile_stage.make_step(self.mode, model, data, layout, self._entries, rods, fr, ends,
                                              self.mass_damping, self.stiffness_damping, diagnosis,
-                                             self.strain_limit, self.contact)
+                                             self.strain_limit, self.contact, self._declared.excludes)
         self._model, self._data, self._layout = model, data, layout
         self._guard = Guard(model, data, layout, self._step, diagnosis)
         if self.scene_checks:
