@@ -325,3 +325,40 @@ def test_a_contact_exclude_naming_b_last_keeps_the_last_edge_off_that_body(tmp_p
     else:
         assert touches > 0
         assert tip > 0.24  # on the pad (the alpha mode's still bounces there at 1 s)
+
+
+def test_the_stress_colours_read_the_moment_as_the_cable_plugin_does():
+    """``vmax`` colours a rod by its elastic moment [N m] (MuJoCo's cable plugin: the joints'
+    moment on a jet scale up to vmax). A straight rod bent into an arc of radius R carries
+    E I / R at its inner edges (DER's 2 tan(phi/2) per joint: within (phi/2)^2 / 3, phi the
+    turn per joint, here 1e-3 relative); twisted by Theta over L it carries G J Theta / L;
+    at rest it carries none; the scale runs blue (0) to red (vmax)."""
+    import dataclasses
+
+    import derods
+    from derods import shapes
+    from derods.apps.mjcf_run import stress_painter
+    from derods.viz import overlay
+
+    mat = derods.Material(young=1e7, radius=0.005)
+    rod = derods.Rod(shapes.straight(0.5, 50), mat)
+    w = World(gravity=(0.0, 0.0, 0.0))
+    w.add_rod(rod, start="clamp", end="clamp")
+    w.compile()
+    state = w.rod_state(0)
+    assert np.allclose(overlay.internal_moment(rod, w.positions(0), state), 0.0, atol=1e-12)
+    radius = 0.4
+    s = np.linspace(0.0, 0.5, 51)
+    arc = np.stack([radius * np.sin(s / radius), 0 * s, radius * (1 - np.cos(s / radius))], axis=1)
+    w.set_positions(0, arc)
+    moment = overlay.internal_moment(rod, arc, w.rod_state(0))
+    np.testing.assert_allclose(moment[1:-1], mat.alpha / radius, rtol=1e-3)
+    flat = derods.Material(young=1e7, radius=0.005, radius2=0.004)  # anisotropic: it carries the twist term
+    band = derods.Rod(shapes.straight(0.5, 50), flat)
+    assert "twist" in band.active_terms
+    turned = dataclasses.replace(state, theta=np.linspace(0.0, 1.0, 50))  # 1 rad over the 49 joints' 0.49 m
+    twisted = overlay.internal_moment(band, band.rest_x, turned)
+    np.testing.assert_allclose(twisted[1:-1], flat.beta / 0.49, rtol=1e-9)
+    np.testing.assert_allclose(overlay.jet_colours(np.array([0.0, 2.0]), 1.0)[:, :3], [[0, 0, 1], [1, 0, 0]])
+    assert stress_painter(world("helix_free")) is not None  # its plugin sets vmax
+    assert stress_painter(world("s_curve_slider")) is None

@@ -156,10 +156,34 @@ def run(args: argparse.Namespace) -> int:
     warmup.prepare()
     camera = args.camera or "main"
     result = filming.film(world, out, args.seconds, args.fps, args.width, args.height, camera,
-                         progress=not args.quiet, label="run", quality=args.quality)
+                         paint=stress_painter(world), progress=not args.quiet, label="run", quality=args.quality)
     print(f"wrote {out}: {result['frames']} frames, {world.time:.4g} s simulated ({world.n_steps} steps, "
           f"{world.mode}), rods {', '.join(world.rod_names)}")
     return 0
+
+
+def stress_painter(world):
+    """A scene callback that draws each rod whose cable plugin set ``vmax`` as a tube coloured
+    by its elastic moment on MuJoCo's jet scale up to vmax [N m]
+    (:func:`derods.viz.overlay.internal_moment`), its flex hidden; None if no rod has one."""
+    from derods.viz import overlay
+
+    scale = {i: d.vmax for i, d in enumerate(world._declared) if d.vmax}
+    if not scale:
+        return None
+    import mujoco
+
+    m = world.model
+    for i in scale:  # the coloured tube replaces the flex
+        m.flex_rgba[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_FLEX, world.rod_names[i]), 3] = 0.0
+
+    def paint(scene):
+        for i, vmax in scale.items():
+            rod, x = world.rods[i], world.positions(i)
+            moment = overlay.internal_moment(rod, x, world.rod_state(i))
+            overlay.add_tube(scene, x, rod.material.radius, overlay.jet_colours(moment, vmax), closed=rod.closed)
+
+    return paint
 
 
 def view(args: argparse.Namespace) -> int:

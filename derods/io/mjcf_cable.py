@@ -307,7 +307,8 @@ def read_composite(comp: ET.Element, cls: str | None, classes: dict, instances: 
         try:
             vmax_v = float(vmax)
         except ValueError:
-            refuse(plug, f'config key="vmax" value="{vmax}" must be a number [Pa]', label)
+            refuse(plug, f'config key="vmax" value="{vmax}" must be a number [N m] (the largest elastic moment '
+                         'of the stress colours)', label)
     return CableDecl(
         name=name, x=x, material=material, flat=flat, u0=u0, rgba=rgba, contact=contact, prefix=prefix,
         initial=initial,

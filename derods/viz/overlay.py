@@ -62,6 +62,57 @@ def strain_colours(values: np.ndarray, vmax: float | None = None) -> np.ndarray:
     return np.concatenate([rgb, np.ones((len(v), 1))], axis=1)
 
 
+def jet_colours(values: np.ndarray, vmax: float) -> np.ndarray:
+    """RGBA per value (n,) on the jet scale MuJoCo's cable plugin colours stress with:
+    blue (0), cyan, yellow, red (vmax and above), shape (n, 4)."""
+    s = np.clip(np.asarray(values, dtype=float) / vmax, 0.0, 1.0)
+    r = np.clip(4.0 * s - 2.0, 0.0, 1.0)
+    g = np.clip(np.minimum(4.0 * s, 4.0 - 4.0 * s), 0.0, 1.0)
+    b = np.clip(2.0 - 4.0 * s, 0.0, 1.0)
+    return np.stack([r, g, b, np.ones_like(s)], axis=1)
+
+
+def internal_moment(rod, x: np.ndarray, state) -> np.ndarray:
+    """The elastic moment's magnitude per edge [N m], shape (n_edges,), what MuJoCo's cable
+    plugin colours by (the moment at its joints, averaged onto the segment): at each joint
+    |(B1 dw1, B2 dw2)| and G J dm over its Voronoi length l_k / 2 (dw the material curvature
+    less the rest's, dm the twist less the rest's; Bergou et al. 2008), combined as a vector,
+    then averaged onto the joint's edges."""
+    from ..frames import material_curvatures, material_frames
+    from ..geometry import curvature_binormal
+
+    m1, m2 = material_frames(state.u, state.t, state.theta)
+    w = material_curvatures(curvature_binormal(x, rod.closed), m1, m2, rod.closed)
+    if rod.rest_curvature is not None:
+        w = w - rod.rest_curvature
+    w = w.mean(axis=-2)  # the joint's two edges' frames
+    b1, b2 = rod.material.bend_stiffness
+    moment = np.hypot(b1 * w[:, 0], b2 * w[:, 1])
+    if "twist" in rod.active_terms:
+        moment = np.hypot(moment, rod.material.beta * _twist_per_joint(rod, state))
+    return _onto_edges(moment / (0.5 * rod.vlen), rod.closed)
+
+
+def _twist_per_joint(rod, state) -> np.ndarray:
+    """|m_k - mbar_k| per joint [rad]: the material frame's turn across it, less the rest's."""
+    from ..frames import reference_twist
+    from ..geometry import joint_pairs
+
+    th_a, th_b = joint_pairs(state.theta[..., None], rod.closed)
+    m = th_b[..., 0] - th_a[..., 0] + reference_twist(state.u, state.t, rod.closed)
+    return np.abs(m + rod.boundary.seam_offset(len(m)) - rod.mbar)
+
+
+def _onto_edges(per_joint: np.ndarray, closed: bool) -> np.ndarray:
+    """Values per joint averaged onto edges (an open rod's end edges get half of one joint's)."""
+    if closed:
+        return 0.5 * (per_joint + np.roll(per_joint, -1))
+    out = np.zeros(len(per_joint) + 1)
+    out[:-1] += 0.5 * per_joint
+    out[1:] += 0.5 * per_joint
+    return out
+
+
 def add_tube(scene, x: np.ndarray, radius: float, rgba_per_edge: np.ndarray, closed: bool = False) -> None:
     """The rod as capsules, one per edge, coloured per edge (e.g. by :func:`strain_colours`)."""
     n = len(x) if closed else len(x) - 1
@@ -89,19 +140,7 @@ def twisting_strain(rod, state) -> np.ndarray:
     """Twist rate per edge [rad/m], shape (n_edges,): m_k / (l_k / 2) at the joints
     (the material frame's turn per Voronoi length), averaged onto edges. Times the
     radius it is the shear strain of twisting."""
-    from ..frames import reference_twist
-    from ..geometry import joint_pairs
-
-    th_a, th_b = joint_pairs(state.theta[..., None], rod.closed)
-    m = th_b[..., 0] - th_a[..., 0] + reference_twist(state.u, state.t, rod.closed)
-    m = m + rod.boundary.seam_offset(len(m)) - rod.mbar
-    rate = np.abs(m) / (0.5 * rod.vlen)
-    if rod.closed:
-        return 0.5 * (rate + np.roll(rate, -1))
-    out = np.zeros(len(rate) + 1)
-    out[:-1] += 0.5 * rate
-    out[1:] += 0.5 * rate
-    return out
+    return _onto_edges(_twist_per_joint(rod, state) / (0.5 * rod.vlen), rod.closed)
 
 
 def rod_lines(world, width: float = 2.0):
