@@ -362,3 +362,41 @@ def test_the_stress_colours_read_the_moment_as_the_cable_plugin_does():
     np.testing.assert_allclose(overlay.jet_colours(np.array([0.0, 2.0]), 1.0)[:, :3], [[0, 0, 1], [1, 0, 0]])
     assert stress_painter(world("helix_free")) is not None  # its plugin sets vmax
     assert stress_painter(world("s_curve_slider")) is None
+
+
+_SAGGING = """<mujoco>
+  <option timestep="2e-3"/>
+  <extension><plugin plugin="mujoco.elasticity.cable"/></extension>
+  <worldbody>
+    <composite type="cable" curve="s" count="21 1 1" size="0.5" offset="0 0 0.5" initial="none">
+      <plugin plugin="mujoco.elasticity.cable"><config key="bend" value="1e6"/><config key="twist" value="4e5"/></plugin>
+      <geom type="capsule" size="0.004" density="1000"/>
+    </composite>
+  </worldbody>
+  <sensor><framequat name="end_turn" objtype="site" objname="S_last"/>
+          <framepos name="end_at" objtype="site" objname="S_last"/></sensor>
+</mujoco>"""
+
+
+def test_a_read_only_s_last_turns_with_the_cables_end(tmp_path):
+    """A cantilever cable sagging under gravity; a framequat sensor on S_last (only read, so
+    derods makes it a mocap body it poses every step, derods.sim.riders): its x axis stays
+    along the end edge as the end turns down (MuJoCo 3.x's end body has its x axis along
+    its segment), to round-off, and its position on the end vertex; until then it kept its
+    starting orientation (the end turned 1.5 rad here)."""
+    path = tmp_path / "sag.xml"
+    path.write_text(_SAGGING)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        w = World(str(path))
+    w.compile()
+    w.step(150)
+    mujoco.mj_forward(w.model, w.data)
+    x = w.positions(0)
+    tangent = (x[-1] - x[-2]) / np.linalg.norm(x[-1] - x[-2])
+    mat = np.zeros(9)
+    mujoco.mju_quat2Mat(mat, w.data.sensor("end_turn").data)
+    axis = mat.reshape(3, 3)[:, 0]
+    np.testing.assert_allclose(axis, tangent, atol=1e-12)
+    np.testing.assert_allclose(w.data.sensor("end_at").data, x[-1], atol=1e-12)
+    assert math.acos(np.clip(tangent[0], -1, 1)) > 0.2  # the end did turn

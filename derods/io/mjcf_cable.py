@@ -89,6 +89,9 @@ class CableDecl:
     initial: str | None = None
     #: Names of the cable's end bodies and sites the model only reads (sensors, cameras).
     read: set = field(default_factory=set)
+    #: The mocap bodies riding on its ends for them (made at compile): (body name, vertex,
+    #: edge, starting orientation (w, x, y, z)) each (:mod:`derods.sim.riders`).
+    riders: list = field(default_factory=list)
 
 
 def generated_names(prefix: str, count: int) -> dict[str, str]:

@@ -24,6 +24,7 @@ import numpy as np
 
 from .. import validation
 from ..sim.exclusion import ExcludedPair
+from ..sim.riders import Rider, Riders
 from . import cable_geometry as geo
 from . import mjcf_cable, mjcf_equality, mjcf_flexcomp, mjcf_keys, mjcf_xml
 from .mjcf_cable import CableDecl
@@ -378,14 +379,39 @@ def finish_spec(spec: mujoco.MjSpec, decls: list[CableDecl]) -> None:
             continue
         frames = geo.body_frames(d.x)
         n, p = len(d.x), d.prefix
-        for name, vertex, quat, site in ((f"{p}B_first", 0, frames[0], False), (f"{p}S_first", 0, frames[0], True),
-                                         (f"{p}B_last", n - 2, frames[-1], False),
-                                         (f"{p}S_last", n - 1, frames[-1], True)):
+        for name, vertex, edge, quat, site in ((f"{p}B_first", 0, 0, frames[0], False),
+                                               (f"{p}S_first", 0, 0, frames[0], True),
+                                               (f"{p}B_last", n - 2, n - 2, frames[-1], False),
+                                               (f"{p}S_last", n - 1, n - 2, frames[-1], True)):
             if name not in d.read:
                 continue
             spec.delete(spec.site(name) if site else spec.body(name))
-            body = spec.body(f"{d.name}_{vertex}")
+            # a mocap body derods poses on the vertex every step, turned with the edge (derods.sim.riders)
+            body = spec.worldbody.add_body(name=f"{name}__rides" if site else name, mocap=True, pos=d.x[vertex],
+                                           quat=quat)
             if site:
-                body.add_site(name=name, quat=quat, group=3, size=[d.material["radius"], 0, 0])
-            else:
-                body.add_body(name=name, quat=quat)
+                body.add_site(name=name, group=3, size=[d.material["radius"], 0, 0])
+            d.riders.append((body.name, vertex, edge, np.asarray(quat, dtype=float)))
+    riding = [(d.x[v], q) for d in decls for _, v, _, q in d.riders]
+    for key in spec.keys:  # a keyframe's mocap poses cover the riders too, where it sets any
+        if len(key.mpos):
+            key.mpos = np.concatenate([np.asarray(key.mpos, dtype=float)] + [x for x, _ in riding])
+            key.mquat = np.concatenate([np.asarray(key.mquat, dtype=float)] + [q for _, q in riding])
+
+
+def riders(model: mujoco.MjModel, decls: list[CableDecl], layout, rods, frames) -> Riders:
+    """The riding bodies :func:`finish_spec` made, for the compiled ``model`` (World.compile
+    gives them to the step): each on its vertex and edge of the world's flat arrays
+    (``layout``, ``rods``), turned from the rods' starting ``frames``."""
+    out = []
+    for d in decls:
+        i = layout.names.index(d.name) if d.riders else -1
+        for name, vertex, edge, quat in d.riders:
+            e = int(rods.e_off[i]) + edge
+            f0 = Riders.frame(frames.u[e:e + 1], frames.t[e:e + 1], frames.theta[e:e + 1])[0]
+            r0 = np.zeros(9)
+            mujoco.mju_quat2Mat(r0, quat)
+            v0 = int(layout.v_off[i])
+            out.append(Rider(int(model.body_mocapid[model.body(name).id]), v0 + vertex, e, f0.T @ r0.reshape(3, 3),
+                             (v0 + edge, v0 + edge + 1)))
+    return Riders(out)

@@ -101,6 +101,8 @@ class Step:
         self._rhs = np.zeros(n)
         self._kv = np.zeros(n)
         self.reactions = Reactions(model, layout, entries, rods.e_off)
+        #: Bodies riding on rod ends (derods.sim.riders), posed once the frames are known.
+        self.riders = None
         self._moving = len(layout.moved_vertex) > 0
         #: Held vertices the user moves between steps (mocap bodies): their edges' strain
         #: at the step's start is the user's, not a divergence (derods.sim.prescribed).
@@ -170,6 +172,8 @@ class Step:
             self.diagnosis.strain(bad, float(self.terms.strain[bad]), self.n_steps, self.data.time)
         if self.reactions:
             self.reactions.apply(self.model, self.data, x, self.terms.grad, self.frames.t, self.terms.end_moment)
+        if self.riders:
+            self.riders(x, self.frames, self.data)
 
     def _evaluate(self, x: np.ndarray) -> int:
         """Frames, twist, forces and the world's band at x (one compiled call); the index of

@@ -168,6 +168,7 @@ class World:
         self._step = compile_stage.make_step(self.mode, model, data, layout, self._entries, rods, fr, ends,
                                              self.mass_damping, self.stiffness_damping, diagnosis,
                                              self.strain_limit, self.contact, self._declared.excludes)
+        self._step.riders = mjcf_load.riders(model, self._declared, layout, rods, fr)
         self._model, self._data, self._layout = model, data, layout
         self._guard = Guard(model, data, layout, self._step, diagnosis)
         if self.scene_checks:
@@ -367,7 +368,7 @@ class World:
         if type(n_steps) is not int or n_steps < 0:
             n_steps = validation.integer("n_steps", n_steps, ge=0)
         self.compile()
-        step, guard = self._step.step, self._guard
+        step, guard, riders = self._step.step, self._guard, self._step.riders
         for _ in range(n_steps):
             guard.before()
             try:
@@ -375,4 +376,6 @@ class World:
             except Exception as err:  # undone, and named if a bad value written between steps caused it
                 guard.failed(err)
             guard.after()
+        if riders and n_steps:
+            riders.after_step(self._step.positions(), self._step.frames, self._data)
 
