@@ -400,3 +400,18 @@ def test_a_read_only_s_last_turns_with_the_cables_end(tmp_path):
     np.testing.assert_allclose(axis, tangent, atol=1e-12)
     np.testing.assert_allclose(w.data.sensor("end_at").data, x[-1], atol=1e-12)
     assert math.acos(np.clip(tangent[0], -1, 1)) > 0.2  # the end did turn
+
+
+def test_a_keyframes_mocap_poses_cover_the_riding_bodies(tmp_path):
+    """A file with a mocap body and a keyframe setting its pose, and a read-only S_last (a
+    mocap body derods adds): the keyframe's poses are extended by the rider's starting pose
+    (MuJoCo refuses a keyframe whose mocap poses do not match the mocap bodies)."""
+    xml = _SAGGING.replace("<worldbody>", '<worldbody><body name="hand" mocap="true" pos="1 0 1"/>')
+    xml = xml.replace("</sensor>", '</sensor><keyframe><key name="k" mpos="1 0 2" mquat="1 0 0 0"/></keyframe>')
+    path = tmp_path / "key.xml"
+    path.write_text(xml)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        w = World(str(path))
+    w.compile()
+    np.testing.assert_allclose(w.model.key_mpos.reshape(-1, 3), [[1.0, 0.0, 2.0], [0.5, 0.0, 0.5]])
