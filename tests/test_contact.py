@@ -136,3 +136,36 @@ def test_left_to_mujoco_the_box_sinks_through_the_cable(monkeypatch):
     a bare vertex mass), the same box ends on the floor."""
     bottom, _ = _box_on_cable(1.0, False, monkeypatch)
     assert bottom < 1e-3
+
+
+@pytest.mark.parametrize("mode", ["implicit", "alpha", "projection"])
+def test_each_rod_contact_reports_what_the_step_applied(mode):
+    """World.contacts(): a rod on a floor, a second rod across it, a free box resting on the
+    second. Summed over its contacts, the forces on each rod equal World.contact_force's sum
+    (the same row forces, read per contact through mj_contactForce: 1e-9 N); every floor
+    contact names the world body and the floor geom, the crossing names the other rod, the
+    box's contact the box's body, and the floor holds the lower rod up."""
+    r = 0.004
+    spec = mujoco.MjSpec.from_string(
+        '<mujoco><worldbody><geom name="floor" type="plane" size="2 2 .1"/>'
+        f'<body name="box" pos="0.1 0.2 {4 * r + 0.02 + 5e-4}"><freejoint/>'
+        '<geom name="boxgeom" type="box" size="0.02 0.02 0.02" mass="0.2"/></body></worldbody></mujoco>')
+    dt = 2e-3
+    w = World(spec, dt=dt, mode=mode, scene_checks=False, contact=derods.ContactParams(rod_rod=True))
+    w.add_rod(derods.Rod(shapes.straight(0.6, 30, start=(-0.3, 0.0, r)), derods.Material(young=1e7, radius=r)), "low")
+    w.add_rod(derods.Rod(shapes.straight(0.6, 30, start=(0.1, -0.3, 3 * r + 5e-4), direction=(0, 1, 0)),
+                         derods.Material(young=1e7, radius=r)), "high")
+    w.step(int(round(0.05 / dt)))
+    cs = w.contacts()
+    floor, box = w.model.geom("floor").id, w.model.body("box").id
+    on_floor = [c for c in cs if c.geom == floor]
+    assert on_floor and all(c.body == 0 and c.other_rod is None and c.normal_force >= 0 for c in on_floor)
+    for name in ("low", "high"):
+        mine = [c for c in cs if c.rod == name]
+        applied = sum((c.normal_force * c.normal + c.friction for c in mine), np.zeros(3))
+        applied -= sum((c.normal_force * c.normal + c.friction for c in cs if c.other_rod == name and c.rod != name),
+                       np.zeros(3))  # a rod-rod contact is listed once, seen from one rod
+        np.testing.assert_allclose(applied, w.contact_force(name).sum(axis=0), atol=1e-9)
+    assert {(c.rod, c.other_rod) for c in cs if c.other_rod is not None} & {("high", "low"), ("low", "high")}
+    assert any(c.body == box and c.rod == "high" for c in cs)
+    assert sum(c.normal_force for c in on_floor) > 0

@@ -35,6 +35,7 @@ import numpy as np
 from .._numba.coupling import gather_positions
 from .. import validation
 from ..io import mjcf_load
+from .rod_contacts import RodContact, rod_contacts
 from ..rod import Rod, RodState, check_turns
 from . import compile_stage
 from .contact_params import ContactParams
@@ -330,6 +331,16 @@ class World:
         f = self._step.contact_force[lo:hi] if solved else self._data.qfrc_constraint[lay.dofs[lo:hi]]
         out[lay.free_vertex[lo // 3:hi // 3] - lay.v_off[i]] = f.reshape(-1, 3)
         return out
+
+    def contacts(self) -> list[RodContact]:
+        """The rods' contacts in the last step, one :class:`~derods.sim.rod_contacts.RodContact`
+        each: which vertex or edge touches which body, geom or rod, where, and the normal and
+        friction force [N] on the rod (MuJoCo's ``mj_contactForce`` of the row forces the step
+        applied: derods' own in the implicit and alpha modes)."""
+        self.compile()
+        m = self._model
+        flex_rod = {mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_FLEX, e.name): e.name for e in self._entries}
+        return rod_contacts(m, self._data, flex_rod)
 
     def _edges(self, i: int) -> slice:
         e_off = self._step.rods.e_off
