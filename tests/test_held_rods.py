@@ -379,3 +379,12 @@ def test_a_rod_spanning_from_the_world_to_a_free_body_stays_stable(mass, inertia
     through, the rod kinked at the world's clamp and the strain projection failing there."""
     note = _span(mass, inertia, end, dt)
     assert not note, note
+
+
+def test_the_holder_is_among_the_bodies_solved_with_the_rods():
+    """World.solved_bodies(): a cart holding a cable's start joins derods' solve every step
+    (its tree is the rods' border), and only bodies with dofs are named (not the rod's own
+    vertex bodies)."""
+    sc = held._drag(held.Case("drag", "slide", 1.0, "pin", 5e-3, 1e7, 32))
+    sc.world.step(5)
+    assert sc.world.solved_bodies() == ["holder"]

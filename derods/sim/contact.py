@@ -99,12 +99,16 @@ class ContactStep:
         self.bodies = bool(np.any(self._dof_tree >= 0))
         self._dynamics = TreeDynamics(model) if self.bodies else None
         self._contact_step = Bound(_k.contact_step)
+        #: The body trees (MuJoCo tree ids) whose dofs joined the last step's solve.
+        self.joined_trees = np.zeros(0, dtype=np.int64)
 
     def __call__(self, data: mujoco.MjData, system: ImplicitSystem, a0: np.ndarray) -> np.ndarray | None:
         """The acceleration [m/s^2] (n,) with contacts, or None if no row touches a rod."""
         nefc = data.nefc
+        self.joined_trees = np.zeros(0, dtype=np.int64)
         if nefc:
             trees = self._touching_trees(data) if self.bodies else ()
+            self.joined_trees = np.asarray(trees, dtype=np.int64)
             if len(trees):
                 touched = self._with_trees(data, system, a0, trees)
             else:

@@ -130,6 +130,7 @@ class CoupledStep:
             h_qq[np.ix_(c, c)] += s * k_q  # the held-dof block of the tree's
         # The rods' system, extended by the trees the rows bind to rods this step.
         trees = self.contact._touching_trees(d) if (self.contact.bodies and d.nefc) else np.zeros(0, np.int64)
+        self.contact.joined_trees = np.union1d(trees, hl.trees).astype(np.int64)  # the holders' trees always join
         ext_sys = WithTrees(m, d, sysm, self.contact, trees, step.a0)
         nn = ext_sys.n
         # Without touching trees, the compiled calls get the same objects every step, or ones

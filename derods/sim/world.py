@@ -342,6 +342,19 @@ class World:
         flex_rod = {mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_FLEX, e.name): e.name for e in self._entries}
         return rod_contacts(m, self._data, flex_rod)
 
+    def solved_bodies(self) -> list[str]:
+        """The bodies with dofs whose motion derods solved with the rods in the last step (their
+        trees touched a rod, or hold one; implicit and alpha modes), by name (or id if unnamed):
+        their contact and constraint forces are derods', the rest MuJoCo's."""
+        self.compile()
+        contact = getattr(self._step, "contact", None)
+        if contact is None or self.mode == "projection" and not self._step.holders:
+            return []
+        m = self._model
+        joined = np.isin(m.body_treeid, contact.joined_trees) & (m.body_treeid >= 0)
+        joined[self._layout.body] = False  # the rods' own vertex bodies (a held one rides its holder)
+        return [m.body(int(b)).name or str(int(b)) for b in np.flatnonzero(joined)]
+
     def _edges(self, i: int) -> slice:
         e_off = self._step.rods.e_off
         return slice(int(e_off[i]), int(e_off[i + 1]))
