@@ -329,6 +329,7 @@ def contact_params(c) -> None:
     for key in ("self_collision", "rod_rod", "holder_contact", "static_friction"):
         boolean(key, getattr(c, key))
     real("margin", c.margin, "m", ge=0, example=0.0)
+    integer("priority", c.priority)
 
 
 def world_options(scene, dt, gravity, mode, mass_damping, stiffness_damping, contact, integrator, strain_limit,

@@ -171,3 +171,22 @@ def test_each_rod_contact_reports_what_the_step_applied(mode):
     assert sum(c.normal_force for c in on_floor) > 0
     # the box's tree joined derods' solve (MuJoCo's own solve in the projection mode)
     assert w.solved_bodies() == ([] if mode == "projection" else ["box"])
+
+
+@pytest.mark.parametrize("priority", [0, 2])
+def test_the_rods_contact_priority_decides_whose_contact_parameters_win(priority):
+    """ContactParams(priority=...) is the rods' flex priority: against a pad of priority 1,
+    the default 0 takes the pad's solref and friction whole (MuJoCo's rule: the higher
+    side's parameters), 2 takes the rod's."""
+    spec = mujoco.MjSpec.from_string(
+        '<mujoco><worldbody><geom name="pad" type="box" size="0.2 0.2 0.01" priority="1" '
+        'solref="0.02 1" friction="1.5 0.02 0.001"/></worldbody></mujoco>')
+    params = derods.ContactParams(priority=priority, solref=(0.004, 1.0), friction=0.7)
+    w = World(spec, dt=2e-3, contact=params, scene_checks=False)
+    w.add_rod(derods.Rod(shapes.straight(0.2, 10, start=(-0.1, 0.0, 0.0139)), derods.Material(young=1e7, radius=0.004)))
+    w.step(5)
+    con = w.data.contact
+    assert w.data.ncon > 0
+    want = ((0.02, 1.0), 1.5) if priority == 0 else ((0.004, 1.0), 0.7)
+    np.testing.assert_allclose(con.solref[: w.data.ncon], np.broadcast_to(want[0], (w.data.ncon, 2)))
+    np.testing.assert_allclose(con.friction[: w.data.ncon, 0], want[1])

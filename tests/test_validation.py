@@ -155,6 +155,7 @@ BAD = [
     ("friction str", lambda w: ContactParams(friction="1"), InvalidTypeError, "friction"),
     ("solimp out of range", lambda w: ContactParams(solimp=(1.5, -1, 0, 0.5, 2)), InvalidInputError, "solimp"),
     ("solimp two values", lambda w: ContactParams(solimp=(0.9, 0.95)), InvalidInputError, "solimp"),
+    ("priority not whole", lambda w: ContactParams(priority=1.5), InvalidInputError, "priority"),
     ("solimp power below 1", lambda w: ContactParams(solimp=(0.9, 0.95, 0.001, 0.5, 0.5)), InvalidInputError,
      "solimp"),
     ("solref one value", lambda w: ContactParams(solref=(0.005,)), InvalidInputError, "solref"),

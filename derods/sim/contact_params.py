@@ -40,6 +40,12 @@ class ContactParams:
     solves (implicit, alpha, and rods held by bodies with dofs). Off by default for its
     cost, ~20-25 us per step with contacts (bench_world: a rod on the box edge 0.58 -> 0.78
     of the flex's step, a lying rod 0.81 -> 1.04): MuJoCo's soft friction alone.
+    priority: MuJoCo's contact priority of the rods' flexes: the higher side's friction,
+    solref and solimp are taken whole, equal ones mixed (MuJoCo's rule). 0 (default), as
+    MuJoCo's geoms: a pad whose priority its model raised (grippers often set 1) keeps its
+    own grippy contact (the grasp example: 0.76 mm of slip while carried; with the rods at
+    1, tied and mixed, 6.35 mm); raise it for rods to win against geoms left at 0 (a soft
+    default contact on the other side lets friction creep).
     """
 
     friction: float = 1.0
@@ -51,6 +57,7 @@ class ContactParams:
     margin: float = 0.0
     holder_contact: bool = False
     static_friction: bool = False
+    priority: int = 0
 
     def __post_init__(self):
         validation.contact_params(self)

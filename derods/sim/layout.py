@@ -244,6 +244,7 @@ def _add_flex(spec: mujoco.MjSpec, e: RodEntry, contact, collide: bool) -> None:
     flex.solref = list(contact.solref)
     flex.solimp = list(contact.solimp)
     flex.margin = contact.margin
+    flex.priority = contact.priority
     flex.selfcollide = (mujoco.mjtFlexSelf.mjFLEXSELF_AUTO if contact.self_collision
                         else mujoco.mjtFlexSelf.mjFLEXSELF_NONE)
 
