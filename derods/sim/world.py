@@ -41,7 +41,7 @@ from . import compile_stage
 from .contact_params import ContactParams
 from .divergence import Diagnosis, Guard
 from .inputs import MIN_VERTEX_MASS, MODES, rod_entry, scene_spec
-from .integrators import explicit_dt_limit
+from .explicit_limit import explicit_dt_limit
 from .layout import RodEntry
 from .scene_checks import stretched
 
