@@ -6,8 +6,9 @@ vertices where the last step left them, the held edge starts the step turned (an
 more than an edge, stretched) by the user's move alone, and the stiff stretching's one
 linearization about that kinked pose held the rod back: a 0.5 m rod of 100 edges pinned
 to a hand moving sideways at 0.1 m/s (dt 1e-3, zero gravity) reached a mean velocity of
--0.94 m/s, backwards, in 0.1 s (at dt 1e-4 +0.04 m/s; the same rod held by a body on a
-slide, its motion solved in the step, +0.04 at every dt). Backward Euler's Newton
+-0.94 m/s, backwards, in 0.1 s (at dt 1e-4 +0.043 m/s; the same rod held by a heavy body
+on a slide, its motion solved in the step, +0.040 at dt 1e-3, +0.049 at 1e-2; a rigid rod
+starts at +0.025). Backward Euler's Newton
 iterations from that pose reach the right answer in three; the coupled holders of
 :mod:`derods.sim.holders` get it in one, linearizing where the last step ended and
 moving the held vertices within the step. So does this:
