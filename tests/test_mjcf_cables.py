@@ -24,6 +24,17 @@ def world(name: str, **kw) -> World:
         return World(str(MODELS / f"{name}.xml"), rods_from="flexcomp", **kw)
 
 
+def world_of(tmp_path, text: str, **kw) -> World:
+    """The World of an MJCF model written here as ``text`` (its scene warnings silenced), compiled."""
+    path = tmp_path / "model.xml"
+    path.write_text(text)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        w = World(str(path), **kw)
+    w.compile()
+    return w
+
+
 @pytest.mark.parametrize("curve, count, size, quat, offset, first, last", [
     # MuJoCo 3.17's body quaternions (xquat) of the first and last bodies of these composites.
     (("cos(s)", "sin(s)", "s"), 30, [1, 0.1, 6], [1, 0, 0, 0], [0.1, 0.2, 0.3],
@@ -304,12 +315,8 @@ def test_a_contact_exclude_naming_b_last_keeps_the_last_edge_off_that_body(tmp_p
     ``<exclude body1="B_last" body2="pad"/>``, as in MuJoCo 3.x the last segment goes through
     the pad (MuJoCo's body exclusion does not reach a flex's elements: derods marks those
     contacts, derods.sim.exclusion) and the tip hangs at the free cantilever's sag, 0.138 m."""
-    path = tmp_path / "pad.xml"
-    path.write_text(_PAD.format(contact='<contact><exclude body1="B_last" body2="pad"/></contact>' if excluded else ""))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        w = World(str(path), mode=mode)
-    w.compile()
+    w = world_of(tmp_path, _PAD.format(contact='<contact><exclude body1="B_last" body2="pad"/></contact>'
+                                       if excluded else ""), mode=mode)
     m, d = w.model, w.data
     pad, last = m.geom("padgeom").id, len(w.rods[0].rest_len) - 1
     touches = 0
@@ -384,12 +391,7 @@ def test_a_read_only_s_last_turns_with_the_cables_end(tmp_path):
     along the end edge as the end turns down (MuJoCo 3.x's end body has its x axis along
     its segment), to round-off, and its position on the end vertex; until then it kept its
     starting orientation (the end turned 1.5 rad here)."""
-    path = tmp_path / "sag.xml"
-    path.write_text(_SAGGING)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        w = World(str(path))
-    w.compile()
+    w = world_of(tmp_path, _SAGGING)
     w.step(150)
     mujoco.mj_forward(w.model, w.data)
     x = w.positions(0)
@@ -408,10 +410,5 @@ def test_a_keyframes_mocap_poses_cover_the_riding_bodies(tmp_path):
     (MuJoCo refuses a keyframe whose mocap poses do not match the mocap bodies)."""
     xml = _SAGGING.replace("<worldbody>", '<worldbody><body name="hand" mocap="true" pos="1 0 1"/>')
     xml = xml.replace("</sensor>", '</sensor><keyframe><key name="k" mpos="1 0 2" mquat="1 0 0 0"/></keyframe>')
-    path = tmp_path / "key.xml"
-    path.write_text(xml)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        w = World(str(path))
-    w.compile()
+    w = world_of(tmp_path, xml)
     np.testing.assert_allclose(w.model.key_mpos.reshape(-1, 3), [[1.0, 0.0, 2.0], [0.5, 0.0, 0.5]])

@@ -133,6 +133,46 @@ def band_entries(pairs, band_rows: int) -> tuple[np.ndarray, ...]:
     return src[:, 0], src[:, 1], src[:, 2], dst[:, 0], dst[:, 1]
 
 
+def vertex_places(rods) -> np.ndarray:
+    """Every vertex's place in its own rod's band, held ones included (a ring's in ring
+    order), shape (n_vertices,), int64: the compiled step then gives the Gauss-Newton blocks
+    between free and held vertices too (evaluated into one band per rod)."""
+    nvs = np.diff(rods.v_off)
+    return np.concatenate([np.argsort(ring_order(n)) if rods.closed[i] else np.arange(n)
+                           for i, n in enumerate(nvs)]).astype(np.int64)
+
+
+def free_first(layout, rods, place_all: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Where each rod's free vertices start in its all-vertex band (``place_all``,
+    :func:`vertex_places`), shape (n_rods,), and whether every rod's free vertices keep
+    their solve order there: then the world's band is a slice of those bands
+    (:func:`derods._numba.coupling.free_band_into`) and one evaluation serves both."""
+    shares = True
+    first = np.zeros(rods.n_rods, dtype=np.int64)
+    for i in range(rods.n_rods):
+        v = np.arange(rods.v_off[i], rods.v_off[i + 1])
+        free = v[layout.place[v] >= 0]
+        if not len(free):
+            continue
+        own = place_all[free]
+        first[i] = own.min()
+        if not np.array_equal(own - first[i], layout.place[free] - layout.dof_off[i] // 3):
+            shares = False
+    return first, shares
+
+
+def held_block_entries(layout, v_off: np.ndarray, place_all: np.ndarray, held: np.ndarray, rod_of_held: np.ndarray,
+                       band_rows: int) -> tuple[np.ndarray, ...]:
+    """Where K_fh's entries sit in the all-vertex bands: every free dof within the band of a
+    held vertex ``held`` (k,) of rod ``rod_of_held`` (k,), its 3 columns the k-th block
+    (static: the layout fixes them; see :func:`band_entries`)."""
+    reach = band_rows // 3 + 1  # vertices either side within reach of the band
+    pairs = [(rod, place_all[v], place_all[h], layout.place[v], c)
+             for c, (h, rod) in enumerate(zip(held, rod_of_held))
+             for v in range(max(v_off[rod], h - reach), min(v_off[rod + 1], h + reach + 1)) if layout.place[v] >= 0]
+    return band_entries(pairs, band_rows)
+
+
 def gather(bands: np.ndarray, entries: tuple[np.ndarray, ...], shape: tuple[int, int]) -> np.ndarray:
     """The dense matrix of ``shape`` with the bands' (n_bands, rows, n) entries placed by
     :func:`band_entries`' index arrays."""
@@ -227,37 +267,20 @@ class Holders:
         self.rod_of_held = np.searchsorted(rods.v_off, self.held, side="right") - 1
         # Every vertex's place in its own rod's band, held ones included: the Gauss-Newton
         # blocks between free and held vertices come from the compiled step itself.
-        nvs = np.diff(rods.v_off)
-        self._place_all = np.concatenate([np.argsort(ring_order(n)) if rods.closed[i] else np.arange(n)
-                                          for i, n in enumerate(nvs)]).astype(np.int64)
-        self._bands = np.zeros((rods.n_rods, band_rows, 3 * int(nvs.max())))
+        self._place_all = vertex_places(rods)
+        self._bands = np.zeros((rods.n_rods, band_rows, 3 * int(np.diff(rods.v_off).max())))
         self._terms_all = Terms.empty(rods.n_rods, rods.n_vertices, 0, band_rows)
         self._translation = translation_mode(model, layout, self.dofs, self.bodies)
         self._dynamics = TreeDynamics(model)
-        self._blocks = self._block_entries(layout, rods.v_off, band_rows)
+        self._blocks = held_block_entries(layout, rods.v_off, self._place_all, self.held, self.rod_of_held,
+                                          band_rows)
         self._held_blocks = self._held_entries(band_rows)
         self._turns = None
         self._twisted = None
         self._slide_jac = None
-        self._share_band(layout, rods)
-
-    def _share_band(self, layout, rods) -> None:
-        """Whether the world's step can evaluate the rods once for both bands: each rod's
-        free vertices keep their solve order in its all-vertex band, so the world's band is
-        a slice of it (:meth:`evaluate`); then ``_free_first`` (n_rods,) is where each
-        rod's free vertices start there."""
-        self.shares_band, self._fresh = True, False
-        first = np.zeros(rods.n_rods, dtype=np.int64)
-        for i in range(rods.n_rods):
-            v = np.arange(rods.v_off[i], rods.v_off[i + 1])
-            free = v[layout.place[v] >= 0]
-            if not len(free):
-                continue
-            own = self._place_all[free]
-            first[i] = own.min()
-            if not np.array_equal(own - first[i], layout.place[free] - layout.dof_off[i] // 3):
-                self.shares_band = False
-        self._free_first = first
+        #: Whether the world's step evaluates the rods once for both bands (:meth:`evaluate`).
+        self._free_first, self.shares_band = free_first(layout, rods, self._place_all)
+        self._fresh = False
 
     def evaluate(self, step, x: np.ndarray, strain_limit: float) -> int:
         """The world's forces and band at positions x (n_vertices, 3) [m] from one
@@ -270,15 +293,6 @@ class Holders:
         free_band_into(self._bands, self._free_first, step.layout.dof_off, step.terms.band)
         self._fresh = True
         return bad
-
-    def _block_entries(self, layout, v_off, band_rows: int) -> tuple[np.ndarray, ...]:
-        """Where K_fh's entries sit in the compiled step's bands: every free dof within the
-        band of a held vertex (static: the layout fixes them; see :func:`band_entries`)."""
-        reach = band_rows // 3 + 1  # vertices either side within reach of the band
-        pairs = [(rod, self._place_all[v], self._place_all[h], layout.place[v], c)
-                 for c, (h, rod) in enumerate(zip(self.held, self.rod_of_held))
-                 for v in range(max(v_off[rod], h - reach), min(v_off[rod + 1], h + reach + 1)) if layout.place[v] >= 0]
-        return band_entries(pairs, band_rows)
 
     def _held_entries(self, band_rows: int) -> tuple[np.ndarray, ...]:
         """Where K_hh's entries sit in the bands: the blocks among the held vertices of one rod."""

@@ -106,7 +106,7 @@ class Step:
         self._moving = len(layout.moved_vertex) > 0
         #: Held vertices the user moves between steps (mocap bodies): their edges' strain
         #: at the step's start is the user's, not a divergence (derods.sim.prescribed).
-        self.prescribed = PrescribedVertices(model, layout, rods)
+        self.prescribed = PrescribedVertices(model, layout, rods, self.rod_tw)
         #: The positions the step starts from (self.x, or where the last step ended if the
         #: prescribed vertices moved since and the mode takes their move in the step).
         self.x_start = self.x
@@ -381,20 +381,19 @@ class Implicit(Step):
             return 0
         held_x = self.x if held_x is None else held_x
         limited = self.limited if inv_mass is None else self._limited_rest
+
+        def limit(weights: np.ndarray) -> tuple[int, int]:
+            return self._limit_kernel(self.x_start, self.rods.v_off, self.rods.e_off, self.rods.rest_len, weights,
+                                      self.layout.place, self.v, a, self.h, limited, self.strain_limit,
+                                      PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp, held_x)
         try:
-            n, left = self._limit_kernel(self.x_start, self.rods.v_off, self.rods.e_off, self.rods.rest_len,
-                                         self.inv_mass if inv_mass is None else inv_mass, self.layout.place, self.v,
-                                         a, self.h, limited, self.strain_limit, PROJECTION_TOL,
-                                         PROJECTION_MAX_ITER, self._xp, held_x)
+            n, left = limit(self.inv_mass if inv_mass is None else inv_mass)
             if left and inv_mass is not None:
                 # Touching vertices made 100x lighter can leave the projection too ill-conditioned
                 # to converge (a cable jerked along a floor by a mocap cart, 5 mm edges moved 6 mm
                 # a step: 55 iterations, 4 with its own masses): those rods are projected by their
                 # own masses instead, rather than kept strained (0.5 there, then stopped as diverged).
-                n += self._limit_kernel(self.x_start, self.rods.v_off, self.rods.e_off, self.rods.rest_len,
-                                        self.inv_mass, self.layout.place, self.v, a, self.h, limited,
-                                        self.strain_limit, PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp,
-                                        held_x)[0]
+                n += limit(self.inv_mass)[0]
         except ValueError as err:  # the projection's banded Cholesky, in a state gone wild
             self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)
         return n

@@ -41,19 +41,8 @@ import numpy as np
 from .._numba.coupling import band_product_into, free_band_into
 from ..step import RodSet, evaluate
 from .divergence import MAX_STRAIN
-from .holders import band_entries
+from .holders import chain_dofs, free_first, held_block_entries, vertex_places
 from .layout import Layout
-
-
-def without_dofs(model: mujoco.MjModel, bodies: np.ndarray) -> np.ndarray:
-    """Which of ``bodies`` (k,) no joint moves (neither theirs nor an ancestor's), shape (k,) bool."""
-    out = np.zeros(len(bodies), dtype=bool)
-    for i, b in enumerate(bodies):
-        b = int(b)
-        while b > 0 and model.body_dofnum[b] == 0:
-            b = int(model.body_parentid[b])
-        out[i] = b == 0
-    return out
 
 
 class PrescribedVertices:
@@ -65,37 +54,32 @@ class PrescribedVertices:
     where the rods were built, ``layout.x0``).
     """
 
-    def __init__(self, model: mujoco.MjModel, layout: Layout, rods: RodSet):
-        keep = without_dofs(model, layout.moved_body)
+    def __init__(self, model: mujoco.MjModel, layout: Layout, rods: RodSet, rod_tw: np.ndarray):
+        keep = np.array([len(chain_dofs(model, int(b))) == 0 for b in layout.moved_body], dtype=bool)
         rod = np.searchsorted(layout.v_off, layout.moved_vertex, side="right") - 1
         keep &= ~rods.closed[rod].astype(bool)
         self.vertex, self.rod = layout.moved_vertex[keep], rod[keep]
         self.before = layout.x0[self.vertex].copy()
         self._rods = rods
         self._x_last = np.zeros_like(layout.x0)
-        #: Whether a step can take the move in it (:meth:`evaluate`): every rod open (a rod's
-        #: free vertices then keep their order in the band of all its vertices).
+        #: Whether a step can take the move in it (:meth:`evaluate`): every rod open, its
+        #: free vertices keeping their order in the band of all its vertices.
         self.in_step = bool(len(self.vertex)) and not rods.closed.any()
         if not self.in_step:
             return
         # Every vertex's place in its own rod's band, prescribed ones included: the
         # Gauss-Newton blocks K_fh between free and prescribed vertices come from the
-        # compiled step itself (the world's band is sliced from those bands).
-        nvs = np.diff(rods.v_off)
-        self._place_all = np.concatenate([np.arange(n) for n in nvs]).astype(np.int64)
-        self._bands = np.zeros((rods.n_rods, layout.band_rows, 3 * int(nvs.max())))
+        # compiled step itself (the world's band is sliced from those bands), as the
+        # coupled holders' do (derods.sim.holders).
+        self._place_all = vertex_places(rods)
+        self._free_first, shares = free_first(layout, rods, self._place_all)
+        self.in_step = shares
+        self._bands = np.zeros((rods.n_rods, layout.band_rows, 3 * int(np.diff(rods.v_off).max())))
         self._band_of_rod = np.arange(rods.n_rods, dtype=np.int64)
-        self._free_first = np.array([int(np.argmax(layout.place[rods.v_off[i]:rods.v_off[i + 1]] >= 0))
-                                     for i in range(rods.n_rods)], dtype=np.int64)
-        reach = layout.band_rows // 3 + 1  # vertices either side within the band
-        pairs = [(i, w - rods.v_off[i], v - rods.v_off[i], layout.place[w], c)
-                 for c, (v, i) in enumerate(zip(self.vertex, self.rod))
-                 for w in range(max(rods.v_off[i], v - reach), min(rods.v_off[i + 1], v + reach + 1))
-                 if layout.place[w] >= 0]
-        self._blocks = band_entries(pairs, layout.band_rows)
+        self._blocks = held_block_entries(layout, rods.v_off, self._place_all, self.vertex, self.rod, layout.band_rows)
         self._kd = np.zeros(layout.n)
-        self._twisted = np.flatnonzero(np.isin(self.rod, np.flatnonzero(rods.clamped & rods.has_twist))
-                                       & np.array([rods.kind[i] == 1 for i in self.rod], dtype=bool))
+        #: Those on rods held at both ends whose twist is the rank-one term (the step's rod_tw).
+        self._twisted = np.flatnonzero(np.isin(self.rod, rod_tw))
 
     def __bool__(self) -> bool:
         return len(self.vertex) > 0

@@ -42,6 +42,7 @@ class Riders:
         self.riders = riders
         self._quat = np.zeros(4)
         self._edges = np.array([r.edge for r in riders], dtype=np.int64)
+        self._a, self._b = np.array([r.ends for r in riders], dtype=np.int64).reshape(-1, 2).T
 
     def __bool__(self) -> bool:
         return bool(self.riders)
@@ -61,8 +62,7 @@ class Riders:
     def after_step(self, x: np.ndarray, frames, data: mujoco.MjData) -> None:
         """Pose them at x (n_vertices, 3) [m] after a step moved the vertices: each edge's
         frame (u, t, theta of the step's start) carried to its tangent at x."""
-        e = self._edges
-        a, b = np.array([r.ends for r in self.riders]).T
+        e, a, b = self._edges, self._a, self._b
         t = x[b] - x[a]
         t /= np.linalg.norm(t, axis=1, keepdims=True)
         u = parallel_transport(frames.u[e], frames.t[e], t)
