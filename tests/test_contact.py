@@ -13,6 +13,8 @@ import derods
 from derods import scenes, shapes
 from derods.sim import contact
 from derods import World
+from derods._numba import contact as _contact_kernels
+from derods._numba.contact_rows import FAR_DENSE_MAX
 
 
 def small_problem(rng, n_vertices=6, n_rows=7, n_far=0):
@@ -38,12 +40,15 @@ def small_problem(rng, n_vertices=6, n_rows=7, n_far=0):
     return system, rows, rng.normal(size=n)
 
 
-@pytest.mark.parametrize("n_rows,n_far", [(7, 0), (7, 3), (0, 4)])
+@pytest.mark.parametrize("n_rows,n_far", [(7, 0), (7, 3), (0, 4), (7, FAR_DENSE_MAX + 16)])
 def test_newton_finds_the_minimum_of_mujocos_primal_problem(n_rows, n_far):
     """min 1/2 (a - a0)^T A (a - a0) + sum 1/2 D_i min(J_i a - aref_i, 0)^2, compared with a
     general-purpose minimizer, and its optimality condition holds to round-off; with
     rows between distant vertices (self-contact) handled as a low-rank update, also when
-    every row is one (a self-contact and nothing else: B must still be factored)."""
+    every row is one (a self-contact and nothing else: B must still be factored), and past
+    FAR_DENSE_MAX of them by conjugate gradients (a pile's rod-rod rows). There, 87 rows on
+    18 dofs, BFGS stops 1e-4 short (measured); the reference is then the dense active-set
+    solve: the problem is quadratic once its active rows are known."""
     rng = np.random.default_rng(0)
     system, rows, a0 = small_problem(rng, n_rows=n_rows, n_far=n_far)
     a, lam, iters = contact_solve(system, a0, rows)
@@ -53,11 +58,72 @@ def test_newton_finds_the_minimum_of_mujocos_primal_problem(n_rows, n_far):
         r = np.minimum(rows.apply(x) - rows.aref, 0.0)
         return 0.5 * (x - a0) @ a_matvec(system, x - a0) + 0.5 * np.sum(rows.d * r * r)
 
-    ref = scipy.optimize.minimize(f, a0, method="BFGS", options={"gtol": 1e-12, "maxiter": 10000}).x
+    if n_far <= FAR_DENSE_MAX:
+        ref = scipy.optimize.minimize(f, a0, method="BFGS", options={"gtol": 1e-12, "maxiter": 10000}).x
+    else:
+        ref = _active_set_minimum(system, rows, a0, a0)
     np.testing.assert_allclose(a, ref, rtol=1e-5, atol=1e-7 * np.abs(ref).max())
     grad = a_matvec(system, a - a0) - rows.transpose_apply(lam, system.n)
     np.testing.assert_allclose(grad, 0.0, atol=1e-9 * np.abs(a_matvec(system, a0)).max())
     assert iters < 30
+
+
+def _active_set_minimum(system, rows, a0, start):
+    """The minimum of the contact problem by dense active-set iteration from ``start``:
+    with the active rows J_a fixed, (A + J_a^T D J_a) a = A a0 + J_a^T D aref; repeated until
+    the active set is that of its own solution."""
+    n = system.n
+    a_dense = np.stack([a_matvec(system, e) for e in np.eye(n)], axis=1)
+    jac = np.stack([rows.apply(e) for e in np.eye(n)], axis=1)
+    a, active = start, None
+    for _ in range(100):
+        now = jac @ a - rows.aref < 0
+        if active is not None and np.array_equal(now, active):
+            return a
+        active = now
+        jd = jac[active].T * rows.d[active]
+        a = np.linalg.solve(a_dense + jd @ jac[active], a_dense @ a0 + jd @ rows.aref[active])
+    raise AssertionError("the active set did not settle")
+
+
+def test_far_rows_weights_row_by_row_equal_the_dense_solves():
+    """Past FAR_DENSE_MAX far rows, diag(J A^-1 J^T) is taken row by row from the band of
+    A^-1 (rows between two rods, which meet nowhere in A^-1) or by a solve per row (a rod
+    touching itself far along); both equal the dense block of solves to round-off (1e-12
+    relative: a dozen products either way), twist terms included."""
+    rng = np.random.default_rng(3)
+    sizes = (30, 24, 27)
+    offsets = np.concatenate(([0], np.cumsum(sizes)))
+    n = int(offsets[-1])
+    bands = []
+    for m in sizes:
+        a = rng.normal(size=(m, m)) * 0.3
+        full = a @ a.T
+        band = np.zeros((9, m))
+        for d in range(9):
+            band[d, : m - d] = np.diag(full, -d)
+        band[0] += 5.0
+        bands.append(band)
+    twist = [(rng.normal(size=sizes[0]), 2.0), None, (rng.normal(size=sizes[2]), 0.7)]
+    system = implicit_system(1e-2, offsets, bands, twist, rng.uniform(0.5, 1.5, size=n), 0.3, 1e-3)
+    n_far = FAR_DENSE_MAX + 20
+    jf = np.zeros((n_far, n))
+    for r in range(n_far):
+        i, j = rng.choice(3, size=2, replace=r % 5 == 0)  # one row in five a rod on itself
+        vi = offsets[i] + 3 * rng.integers(0, sizes[i] // 3 - 1)
+        vj = offsets[j] + 3 * rng.integers(0, sizes[j] // 3 - 1)
+        if i == j and abs(vi - vj) < 12:
+            vj = offsets[j] + (vi - offsets[j] + 15) % (sizes[j] - 5)
+        jf[r, vi:vi + 6] = rng.normal(size=6)  # an edge of each: its two vertices
+        jf[r, vj:vj + 6] += rng.normal(size=6)
+    rows = ContactRows(np.zeros(0, dtype=np.int64), np.zeros((0, 9)), np.zeros(n_far), np.ones(n_far),
+                       np.arange(n_far), jf=jf).rows(n)
+    rod_of_dof = np.searchsorted(offsets, np.arange(n), side="right") - 1
+    by_row = _contact_kernels.delassus_diagonal(system.arrays, rows, rod_of_dof)
+    dense = _contact_kernels.delassus_diagonal(system.arrays, rows, np.zeros(0, dtype=np.int64))
+    a_inv = np.linalg.inv(np.stack([a_matvec(system, e) for e in np.eye(n)], axis=1))
+    np.testing.assert_allclose(dense, np.einsum("ij,jk,ik->i", jf, a_inv, jf), rtol=1e-9)
+    np.testing.assert_allclose(by_row, dense, rtol=1e-12)
 
 
 def test_rows_band_and_products_match_dense_jacobian():

@@ -17,11 +17,11 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from .banded import inverse_band, solve_columns
+from .banded import inverse_band, solve_columns, solve_into
 from .contact_blocks import partition
 from .contact_newton import newton, no_border
 from .dense import inverse_quadratic_rows
-from .contact_rows import Rows, apply_all, efc_triplets, far_columns, far_rows_csr, rows_apply, rows_diag, split_rows
+from .contact_rows import FAR_DENSE_MAX, Rows, apply_all, efc_triplets, far_columns, rows_apply, rows_diag, split_rows
 from .contact_rows import transpose_apply_all
 from .implicit import System, sm_solve_into
 
@@ -46,10 +46,12 @@ class Efc(NamedTuple):
 
 
 @nb.njit(cache=True)
-def delassus_diagonal(system, rows):
+def delassus_diagonal(system, rows, rod_of_dof):
     """diag(J A^-1 J^T) of every row (:class:`derods._numba.contact_rows.Rows`; A factored,
     :class:`derods._numba.implicit.System`): banded rows from the band of B^-1 (Takahashi)
-    with the twist terms' Sherman-Morrison corrections; far rows by solves, side by side."""
+    with the twist terms' Sherman-Morrison corrections; far rows by solves, side by side,
+    or, past FAR_DENSE_MAX of them with rod_of_dof (n,) given (each dof's rod; empty:
+    never), row by row (:func:`_far_diagonal`)."""
     lt, g, z, den, s = system.lt, system.g, system.z, system.den, system.weights[1]
     tw_lo, tw_hi, tw_c = system.tw_lo, system.tw_hi, system.tw_c
     col0, jw, fptr, fcol, fval = rows
@@ -69,7 +71,9 @@ def delassus_diagonal(system, rows):
     kf = len(fptr) - 1
     out = np.empty(kb + kf)
     out[:kb] = diag_b
-    if kf:
+    if kf > FAR_DENSE_MAX and len(rod_of_dof) == n:
+        _far_diagonal(system, rows, zb, rod_of_dof, out[kb:])
+    elif kf:
         cols, first = far_columns(rows, n)
         solve_columns(lt, cols, 0, n, first)
         for i in range(len(tw_lo)):  # A^-1 = B^-1 - w z z^T for each twist term
@@ -90,7 +94,74 @@ def delassus_diagonal(system, rows):
 
 
 @nb.njit(cache=True)
-def row_weights(system, rows, y_border, jq, lu, piv, ratio):
+def _far_diagonal(system, rows, zb, rod_of_dof, out):
+    """diag(J A^-1 J^T) of the far rows of ``rows`` into out (k_f,), each from its own
+    dozen entries: A is block diagonal by rod (rod_of_dof (n,)), so a rod-rod row's parts
+    on two rods do not meet in A^-1, and each part, one edge's vertices, lies inside the
+    band of A^-1 that zb (:func:`derods._numba.banded.inverse_band`) holds; the twist terms
+    subtract w_i (J z_i)^2. A row whose part on one rod spans more than that band (a
+    rod touching itself far along) is solved for, alone: no (n, k_f) block of columns."""
+    lt, z, den, s = system.lt, system.z, system.den, system.weights[1]
+    tw_lo, tw_hi, tw_c = system.tw_lo, system.tw_hi, system.tw_c
+    fptr, fcol, fval = rows.fptr, rows.fcol, rows.fval
+    n = lt.shape[0]
+    reach = min(zb.shape[0], lt.shape[1])
+    tw_of = np.full(n, -1, dtype=np.int64)
+    for i in range(len(tw_lo)):
+        for j in range(tw_lo[i], tw_hi[i]):
+            tw_of[j] = i
+    col = np.zeros(n)
+    for r in range(len(fptr) - 1):
+        lo, hi = fptr[r], fptr[r + 1]
+        local = True
+        acc = 0.0
+        for a in range(lo, hi):  # columns ascending within a row
+            ca, va = fcol[a], fval[a]
+            acc += va * va * zb[0, ca]
+            for b in range(a + 1, hi):
+                if rod_of_dof[fcol[b]] != rod_of_dof[ca]:
+                    continue
+                dd = fcol[b] - ca
+                if dd >= reach:
+                    local = False
+                    break
+                acc += 2.0 * va * fval[b] * zb[dd, ca]
+            if not local:
+                break
+        if local:
+            for a in range(lo, hi):
+                t = tw_of[fcol[a]]
+                first = t >= 0
+                for b in range(lo, a):
+                    if tw_of[fcol[b]] == t:
+                        first = False
+                if not first:
+                    continue
+                jz = 0.0
+                for b in range(a, hi):
+                    if tw_of[fcol[b]] == t:
+                        jz += fval[b] * z[fcol[b]]
+                acc -= s * tw_c[t] / den[t] * jz * jz
+            out[r] = acc
+            continue
+        col[:] = 0.0
+        for a in range(lo, hi):
+            col[fcol[a]] = fval[a]
+        solve_into(lt, col, 0, n)
+        for i in range(len(tw_lo)):  # A^-1 = B^-1 - w z z^T for each twist term
+            gx = 0.0
+            for j in range(tw_lo[i], tw_hi[i]):
+                gx += system.g[j] * col[j]
+            for j in range(tw_lo[i], tw_hi[i]):
+                col[j] -= z[j] * s * tw_c[i] / den[i] * gx
+        acc = 0.0
+        for a in range(lo, hi):
+            acc += fval[a] * col[fcol[a]]
+        out[r] = acc
+
+
+@nb.njit(cache=True)
+def row_weights(system, rows, y_border, jq, lu, piv, ratio, rod_of_dof):
     """The rows' weights in the metric of the implicit step, MuJoCo's impedance kept: D_i =
     1 / (ratio_i diag(J H^-1 J^T)_i), 0 where that is not positive (a row nothing can
     move); H the rods' A, bordered by m dofs (bodies holding rods, :mod:`derods.sim.coupled`;
@@ -98,9 +169,10 @@ def row_weights(system, rows, y_border, jq, lu, piv, ratio):
     (:func:`delassus_diagonal`) plus the border's, u S^-1 u^T with u = J_q - J_f y_border;
     y_border (n, m): A^-1 H_fq; jq (k, m): the rows' entries on the border; lu, piv: the
     Schur complement S's factors (:func:`derods._numba.dense.lu_factor`); ratio (k,):
-    MuJoCo's R / diagA per row (its impedance). system: A, factored
+    MuJoCo's R / diagA per row (its impedance); rod_of_dof (n,): each dof's rod, or empty
+    (:func:`delassus_diagonal`). system: A, factored
     (:class:`derods._numba.implicit.System`); rows: J (:class:`derods._numba.contact_rows.Rows`)."""
-    diag = delassus_diagonal(system, rows)
+    diag = delassus_diagonal(system, rows, rod_of_dof)
     k, m = jq.shape
     if m:
         u = jq.copy()
@@ -182,8 +254,9 @@ def contact_step(efc, supported_types, local_of_dof, dof_off, width, system, a0,
                        system.weights)
         a_b = np.empty(m)
         f_b = np.empty(m)
-        solve_block(row_b, col_b, val_b, efc, block_rows, supported, local_b, width, block, a0[ids], a_b, f_b,
-                    max_iter, tol)
+        rod_b = np.searchsorted(dof_off, ids, side="right") - 1
+        solve_block(row_b, col_b, val_b, efc, block_rows, supported, local_b, width, block, rod_b, a0[ids], a_b,
+                    f_b, max_iter, tol)
         for q in range(m):
             a_out[ids[q]] = a_b[q]
             force_out[ids[q]] = f_b[q]
@@ -191,12 +264,12 @@ def contact_step(efc, supported_types, local_of_dof, dof_off, width, system, a0,
 
 
 @nb.njit(cache=True)
-def solve_block(row, col, val, efc_data, efc_rows, supported, local_of_dof, width, system, a0, a_out, force_out,
-                max_iter, tol):
+def solve_block(row, col, val, efc_data, efc_rows, supported, local_of_dof, width, system, rod_of_dof, a0, a_out,
+                force_out, max_iter, tol):
     """One block of rods' rows (k of them, with the nonzeros row, col, val; efc_rows (k,):
     their numbers among MuJoCo's rows ``efc_data``, :class:`Efc`; supported (nefc,): which of
     those derods solves) re-solved in the implicit metric (``system``, the block's A,
-    factored: :class:`derods._numba.implicit.System`).
+    factored: :class:`derods._numba.implicit.System`; rod_of_dof (n,): each dof's rod).
 
     1. Split the rows (:func:`split_rows`): derods solves the rows that touch only rod
        dofs and are of a supported type; the others keep MuJoCo's force (ext).
@@ -209,8 +282,8 @@ def solve_block(row, col, val, efc_data, efc_rows, supported, local_of_dof, widt
     """
     n = len(a0)
     efc_aref, efc_r, efc_diag_a = efc_data.aref[efc_rows], efc_data.r[efc_rows], efc_data.diag_a[efc_rows]
-    efc, kb, col0, jw, jf, ext = split_rows(row, col, val, local_of_dof, supported[efc_rows],
-                                            efc_data.force[efc_rows], n, width)
+    efc, kb, col0, jw, far, ext = split_rows(row, col, val, local_of_dof, supported[efc_rows],
+                                             efc_data.force[efc_rows], n, width)
     a = a0.copy()
     any_ext = False
     for j in range(n):
@@ -223,7 +296,7 @@ def solve_block(row, col, val, efc_data, efc_rows, supported, local_of_dof, widt
         a += e
     force_out[:] = ext
     if len(efc):
-        fptr, fcol, fval = far_rows_csr(jf)
+        fptr, fcol, fval = far
         rows = Rows(col0, jw, fptr, fcol, fval)
         aref = np.empty(len(efc))
         r_over_diag = np.empty(len(efc))
@@ -231,7 +304,7 @@ def solve_block(row, col, val, efc_data, efc_rows, supported, local_of_dof, widt
             aref[i] = efc_aref[efc[i]]
             r_over_diag[i] = efc_r[efc[i]] / efc_diag_a[efc[i]]
         d = row_weights(system, rows, np.zeros((n, 0)), np.zeros((len(efc), 0)), np.zeros((0, 0)),
-                        np.zeros(0, dtype=np.int64), r_over_diag)
+                        np.zeros(0, dtype=np.int64), r_over_diag, rod_of_dof)
         a, _, lam, _ = newton(system, a, rows, aref, d, no_border(n, len(efc)), max_iter, tol)
         force_out += transpose_apply_all(rows, lam, n)
         for i in range(len(efc)):  # derods' row forces, where MuJoCo's readers look for them

@@ -15,13 +15,21 @@ import numpy as np
 
 from .banded import cholesky_into, solve_columns, solve_into
 from .dense import spd_factor as _spd_factor, spd_solve_factored as _spd_solve_factored
-from .contact_rows import apply_all, exact_line_search, far_columns, rows_band, transpose_apply_all
+from .contact_rows import FAR_DENSE_MAX, apply_all, exact_line_search, far_columns, rows_band, transpose_apply_all
 from .implicit import k_matvec_into
 
 #: m dofs that border the band of a contact solve (bodies holding rods, solved with them):
 #: h_fq (n, m) and h_qq (m, m) the coupled step matrix's border and corner, j_q (k, m) the
 #: rows' entries on them, a0 (m,) their unconstrained acceleration.
 Border = namedtuple("Border", ["h_fq", "h_qq", "j_q", "a0"])
+
+#: Conjugate gradients for Newton's direction among many far rows (:func:`_cg_direction`):
+#: the residual's norm relative to the gradient's, and an iteration cap. An inexact
+#: direction costs Newton an iteration or two, not accuracy (it stops on the gradient, TOL
+#: of :mod:`derods.sim.contact`): 25 cables of 41 vertices in a heap took 7-8 Newton
+#: iterations and ~330 CG iterations a step at 1e-3, 6 and ~690 at 1e-10 (half the step).
+CG_TOL = 1e-3
+CG_MAX_ITER = 500
 
 
 @nb.njit(cache=True)
@@ -100,9 +108,14 @@ def newton(system, a0, rows, aref, d, border, max_iter, tol):
     ab = np.empty_like(a_band)
     lt = np.empty((n, a_band.shape[0]))
     ztw = np.zeros((n, n_tw))
-    zf = np.zeros((n, kf))
+    # Many far rows and no border: Newton's direction by conjugate gradients (_cg_direction).
+    iterative = m == 0 and kf > FAR_DENSE_MAX
+    zf = np.zeros((n, 0 if iterative else kf))
     zf_ready = False
-    far_cols, far_first = far_columns(rows, n)
+    if iterative:
+        far_cols, far_first = zf, n
+    else:
+        far_cols, far_first = far_columns(rows, n)
     kd = np.empty(n)
     ad = np.empty(n)
     adq = np.empty(m)
@@ -161,7 +174,9 @@ def newton(system, a0, rows, aref, d, border, max_iter, tol):
                 n_act += 1
         for j in range(n):
             delta[j] = -y[j, 0]
-        if n_act:
+        if n_act and iterative:
+            _cg_direction(system, rows, w, lt, ztw, grad, delta)
+        elif n_act:
             if not zf_ready:
                 zf[:] = far_cols
                 solve_columns(lt, zf, 0, n, far_first)
@@ -263,6 +278,79 @@ def newton(system, a0, rows, aref, d, border, max_iter, tol):
         if r < 0:
             lam[i] = -d[i] * r
     return a, aq, lam, it
+
+
+@nb.njit(cache=True)
+def _h_apply(system, rows, w, v, kv, out):
+    """out (n,) = H v, H = A + J^T W J (A: ``system``; J: ``rows``, weights w (k,));
+    kv (n,): scratch."""
+    mass, m_coef, s = system.mass, system.weights[0], system.weights[1]
+    n = len(v)
+    k_matvec_into(system, v, kv)
+    jv = apply_all(rows, v)
+    for i in range(len(jv)):
+        jv[i] *= w[i]
+    jt = transpose_apply_all(rows, jv, n)
+    for j in range(n):
+        out[j] = s * kv[j] + m_coef * mass[j] * v[j] + jt[j]
+
+
+@nb.njit(cache=True)
+def _cg_direction(system, rows, w, lt, ztw, grad, delta):
+    """Newton's direction delta (n,) = -H^-1 grad, H = A + J^T W J over every active row
+    (weights w), by conjugate gradients from zero preconditioned with B + twist, H less
+    its far rows (factored: lt, ztw; see :func:`newton`): each iterate lowers Newton's
+    quadratic model, so any is a descent direction. Each far row's weight times its
+    Delassus entry is MuJoCo's d / (1 - d) (the rows' weights keep its impedance), so the
+    far rows lift H's spectrum over B's by tens, and CG_TOL is met in tens of iterations
+    where Woodbury's dense system of the active far rows grows as their cube (a pile's
+    thousands). Writes delta; returns the iterations."""
+    n = len(grad)
+    x = np.zeros(n)
+    r = np.empty(n)
+    hp = np.empty(n)
+    kv = np.empty(n)
+    zc = np.empty((n, 1))
+    bnorm = 0.0
+    for j in range(n):
+        r[j] = -grad[j]
+        bnorm += grad[j] * grad[j]
+    bnorm = np.sqrt(bnorm)
+    zc[:, 0] = r
+    solve_into(lt, zc[:, 0], 0, n)
+    _twist_update(system, ztw, zc)
+    p = zc[:, 0].copy()
+    rz = 0.0
+    for j in range(n):
+        rz += r[j] * zc[j, 0]
+    it = 0
+    for it in range(1, CG_MAX_ITER + 1):
+        _h_apply(system, rows, w, p, kv, hp)
+        php = 0.0
+        for j in range(n):
+            php += p[j] * hp[j]
+        if not php > 0.0:
+            break
+        alpha = rz / php
+        rnorm = 0.0
+        for j in range(n):
+            x[j] += alpha * p[j]
+            r[j] -= alpha * hp[j]
+            rnorm += r[j] * r[j]
+        if np.sqrt(rnorm) <= CG_TOL * bnorm:
+            break
+        zc[:, 0] = r
+        solve_into(lt, zc[:, 0], 0, n)
+        _twist_update(system, ztw, zc)
+        rz_new = 0.0
+        for j in range(n):
+            rz_new += r[j] * zc[j, 0]
+        beta = rz_new / rz
+        rz = rz_new
+        for j in range(n):
+            p[j] = zc[j, 0] + beta * p[j]
+    delta[:] = x
+    return it
 
 
 @nb.njit(cache=True)

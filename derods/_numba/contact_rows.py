@@ -14,6 +14,13 @@ import numba as nb
 import numpy as np
 
 
+#: Far rows beyond which a contact solve without a border (:mod:`derods._numba.contact`)
+#: stops treating them as a dense block: their weights row by row, Newton's direction by
+#: conjugate gradients preconditioned with the band (:mod:`derods._numba.contact_newton`).
+#: Below it, Woodbury's small dense system is exact and cheap (a knot's self-contact).
+FAR_DENSE_MAX = 64
+
+
 class Rows(NamedTuple):
     """Constraint rows over n local dofs: k_b banded rows, row i confined to the window
     [col0_i, col0_i + W) with entries jw_i (col0 (k_b,), jw (k_b, W)), then k_f far rows
@@ -161,12 +168,12 @@ def split_rows(row, col, val, local_of_dof, supported, force, n, width):
     dofs; width: window of a banded row. A row is derods' if it touches only rod dofs and is
     supported; its force is MuJoCo's otherwise (returned as ext on the local dofs).
     Returns (efc: derods' rows, banded first; kb: how many are banded; col0 (kb,);
-    jw (kb, width); jf (k - kb, n); ext (n,)).
+    jw (kb, width); far: the far rows as CSR (fptr, fcol, fval); ext (n,)).
     """
     no_border = np.full(len(local_of_dof), -1, dtype=np.int64)
-    efc, kb, col0, jw, jf, _, ext, _ = split_bordered_rows(row, col, val, local_of_dof, no_border, supported, force,
-                                                           n, 0, width)
-    return efc, kb, col0, jw, jf, ext
+    efc, kb, col0, jw, far, _, ext, _ = split_bordered_rows(row, col, val, local_of_dof, no_border, supported, force,
+                                                            n, 0, width)
+    return efc, kb, col0, jw, far, ext
 
 
 @nb.njit(cache=True)
@@ -176,8 +183,9 @@ def split_bordered_rows(row, col, val, local_of_dof, border_of_dof, supported, f
 
     A row is derods' if it touches only local and border dofs (at least one) and is
     supported; a row that touches border dofs only is banded with an empty window.
-    Returns (efc, kb, col0 (kb,), jw (kb, width), jf (k - kb, n), jq (k, m), ext (n,),
-    ext_q (m,)): ext and ext_q MuJoCo's force of the other rows on the local and border
+    Returns (efc, kb, col0 (kb,), jw (kb, width), far, jq (k, m), ext (n,), ext_q (m,)):
+    far the k - kb far rows as CSR (fptr, fcol, fval; as :func:`far_rows_csr` makes from
+    them dense), ext and ext_q MuJoCo's force of the other rows on the local and border
     dofs.
     """
     nefc = len(supported)
@@ -217,8 +225,9 @@ def split_bordered_rows(row, col, val, local_of_dof, border_of_dof, supported, f
     for k in range(len(efc)):
         k_of_row[efc[k]] = k
     jw = np.zeros((kb, width))
-    jf = np.zeros((len(efc) - kb, n))
     jq = np.zeros((len(efc), m))
+    kf = len(efc) - kb
+    fptr = np.zeros(kf + 1, dtype=np.int64)
     for p in range(len(row)):
         k = k_of_row[row[p]]
         if k < 0:
@@ -230,10 +239,32 @@ def split_bordered_rows(row, col, val, local_of_dof, border_of_dof, supported, f
             continue
         if k < kb:
             jw[k, loc - lo[row[p]]] = val[p]
-        else:
-            jf[k - kb, loc] = val[p]
+        elif val[p] != 0.0:
+            fptr[k - kb + 1] += 1
+    for r in range(kf):
+        fptr[r + 1] += fptr[r]
+    # The far rows as CSR straight from the nonzeros (never dense: a pile's thousands of
+    # rod-rod rows over its thousands of dofs), each row's columns ascending.
+    fcol = np.empty(fptr[kf], dtype=np.int64)
+    fval = np.empty(fptr[kf])
+    fill = fptr[:kf].copy()
+    for p in range(len(row)):
+        k = k_of_row[row[p]]
+        if k < kb or val[p] == 0.0:
+            continue
+        loc = local_of_dof[col[p]]
+        if loc < 0:
+            continue
+        q = fill[k - kb]
+        while q > fptr[k - kb] and fcol[q - 1] > loc:  # insertion: rows have a dozen entries
+            fcol[q] = fcol[q - 1]
+            fval[q] = fval[q - 1]
+            q -= 1
+        fcol[q] = loc
+        fval[q] = val[p]
+        fill[k - kb] += 1
     col0 = lo[efc[:kb]].copy()
-    return efc, kb, col0, jw, jf, jq, ext, ext_q
+    return efc, kb, col0, jw, (fptr, fcol, fval), jq, ext, ext_q
 
 
 @nb.njit(cache=True)

@@ -19,7 +19,7 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from .contact_rows import Rows, efc_triplets, far_rows_csr, split_bordered_rows, transpose_apply_all
+from .contact_rows import Rows, efc_triplets, split_bordered_rows, transpose_apply_all
 from .dense import lu_factor
 
 
@@ -47,7 +47,7 @@ def bordered_rows(efc, supported_types, own, local_of_dof, border_of_dof, n, m, 
     local_of_dof, border_of_dof (nv,): each MuJoCo dof's place among them, -1 elsewhere),
     in one call: the supported types (supported_types (2,)), the rows ``own`` (nefc,) bool
     or empty that take no force at all (neither solved nor MuJoCo's: a held edge against
-    its own holder), the far rows as CSR (:func:`derods._numba.contact_rows.far_rows_csr`)
+    its own holder), the far rows as CSR
     and the solved rows' aref and R / diagA. Returns a :class:`BorderedRows`."""
     nefc = efc.nefc
     row, col, val = efc_triplets(efc.is_sparse, nefc, efc.nv, efc.j, efc.rownnz, efc.rowadr, efc.colind)
@@ -59,9 +59,9 @@ def bordered_rows(efc, supported_types, own, local_of_dof, border_of_dof, n, m, 
         if len(own) and own[r]:
             supported[r] = False
             force[r] = 0.0
-    solved, kb, col0, jw, jf, jq, ext, ext_q = split_bordered_rows(row, col, val, local_of_dof, border_of_dof,
-                                                                  supported, force, n, m, width)
-    fptr, fcol, fval = far_rows_csr(jf)
+    solved, kb, col0, jw, far, jq, ext, ext_q = split_bordered_rows(row, col, val, local_of_dof, border_of_dof,
+                                                                   supported, force, n, m, width)
+    fptr, fcol, fval = far
     aref = np.empty(len(solved))
     ratio = np.empty(len(solved))
     for i in range(len(solved)):

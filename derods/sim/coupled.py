@@ -84,6 +84,7 @@ class CoupledStep:
         self._elem_holder = _element_holders(model, layout, holders.bodies)
         self._qvel = np.zeros(model.nv)
         self._no_rows = np.zeros(0, dtype=np.bool_)
+        self._no_rods = np.zeros(0, dtype=np.int64)  # far rows' diagonal by solves (row_weights)
         self._aq_last = np.zeros(self.m)
         self._dq = np.zeros(len(holders.dofs))  # the holder dofs' step [m or rad]
         # The step's unconstrained solution (see __call__): s K_fq and y = A^-1 s K_fq (n, k),
@@ -171,7 +172,7 @@ class CoupledStep:
                 big_y[:n, c] = y
             # MuJoCo's impedance kept in this metric (see the module docstring)
             weights = self._keyed(self._row_weights, plain, (ext_sys.system, d, y, lu, piv),
-                                  ext_sys.system, rows.rows, big_y, rows.jq, lu, piv, rows.ratio)
+                                  ext_sys.system, rows.rows, big_y, rows.jq, lu, piv, rows.ratio, self._no_rods)
 
         def solve(arc=None):
             """a, a_q and the rows' multipliers (None: no rows) with the held points moved
