@@ -348,3 +348,15 @@ def test_a_large_world_is_built_in_chunks_with_its_names():
     assert np.all(m.body_simple[m.body("r0_5").id] == 2)
     w.step(3)
     assert np.isfinite(w.all_positions()).all()
+
+
+def test_rod_state_before_the_first_step_is_where_the_rod_starts():
+    """World.rod_state read the step's position buffer, zeros until the first step: a
+    rod's energy there was nan (0 / 0 in its curvature)."""
+    x = shapes.straight(0.4, 8, start=(0.0, 0.0, 0.2))
+    rod = derods.Rod(x, derods.Material(young=1e7, radius=0.005))
+    world = World(mujoco.MjSpec.from_string("<mujoco/>"), dt=1e-2, scene_checks=False)
+    world.add_rod(rod, "rod")
+    world.compile()
+    np.testing.assert_array_equal(world.rod_state("rod").x, x)
+    assert rod.energy(world.rod_state("rod")) == pytest.approx(0.0, abs=1e-20)

@@ -86,6 +86,7 @@ class Step:
         self.params = _imp.StepParams(self.h, mass_damping, stiffness_damping, self.gravity)
         n = layout.n
         self.x = np.zeros_like(layout.x0)
+        self.positions()  # where the rods start (World.rod_state before the first step reads it)
         self.terms = Terms.empty(rods.n_rods, rods.n_vertices, n, layout.band_rows)
         tw = [i for i in range(rods.n_rods) if rods.kind[i] == 1 and rods.has_twist[i] and rods.clamped[i]]
         self.rod_tw = np.array(tw, dtype=np.int64)
