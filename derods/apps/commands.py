@@ -234,8 +234,9 @@ def bench(args: argparse.Namespace) -> int:
     if args.case in ("hair", "pile") and args.repeats is not None:
         raise ValueError(f"--repeats is not an option of the {args.case} case (its median step is taken over one "
                          "run)")
-    if args.case != "pile" and args.cables is not None:
-        raise ValueError("--cables is an option of the pile case only")
+    for name in ("cables", "margin"):
+        if args.case != "pile" and getattr(args, name) is not None:
+            raise ValueError(f"--{name} is an option of the pile case only")
     if args.case == "pile":
         from derods.bench import pile
 
@@ -245,7 +246,7 @@ def bench(args: argparse.Namespace) -> int:
         if args.strand_contact or args.backend != "der":
             raise ValueError("the pile case runs on derods only, its cables always touching one another")
         given = {k: v for k, v in (("cables", args.cables), ("vertices", args.vertices), ("dt", args.dt),
-                                   ("seconds", args.seconds)) if v is not None}
+                                   ("seconds", args.seconds), ("margin", args.margin)) if v is not None}
         return pile.main(pile.PileCase(**given), args.json)
     if args.case == "hair":
         from derods.bench import hair as hair_bench

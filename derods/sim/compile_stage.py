@@ -23,7 +23,7 @@ from ..rod import RodState
 from ..step import Frames, RodSet
 from .alpha_step import GeneralizedAlpha
 from .clamps import end_bodies
-from .exclusion import Exclusions
+from .exclusion import Exclusions, SelfReach, self_reach
 from .integrators import Explicit, Implicit, Projection
 from .layout import PROGRESS_FROM, Layout, RodEntry, add_to_spec
 from .scene_checks import fall_step, starts_inside, stretched_words, thin_geoms
@@ -99,18 +99,27 @@ def make_step(mode: str, model, data, layout, entries, rods, fr, ends, mass_damp
     """The step of ``mode`` (:data:`STEPS`), with the World's strain limit (None keeps the
     step's default), what of its :class:`~derods.sim.contact_params.ContactParams` the
     step reads (whether held edges touch their holders, static friction) and the contacts
-    it excludes (:class:`derods.sim.exclusion.ExcludedPair`: where the mode runs MuJoCo's
-    forward pass in stages, the implicit and alpha modes; the others warn)."""
+    it excludes (:class:`derods.sim.exclusion.ExcludedPair`, and with self-collision each
+    thick rod's self-contacts nearer than pi r along it, :func:`derods.sim.exclusion.self_reach`:
+    where the mode runs MuJoCo's forward pass in stages, the implicit and alpha modes; the
+    others warn)."""
     step = STEPS[mode](model, data, layout, entries, rods, fr, ends, mass_damping, stiffness_damping, diagnosis)
-    if excludes:
-        exclusions = Exclusions(model, list(excludes))
-        if getattr(step, "forward", None) is not None and (mode != "projection" or step.holders):
-            step.forward.exclusions = exclusions
-        else:
+    reaches = [SelfReach(e.name, reach, e.rod.n_edges, e.rod.closed) for e in entries if contact.self_collision
+               for reach in [self_reach(e.rod.material.radius, e.rod.rest_len)] if reach > 1]
+    staged = getattr(step, "forward", None) is not None and (mode != "projection" or step.holders)
+    if excludes or reaches:
+        if staged:
+            step.forward.exclusions = Exclusions(model, list(excludes), reaches)
+        elif excludes:
             warnings.warn(f"mode {mode!r} steps with mj_step, which cannot leave out contacts between a rod's end "
                           f"edges and a body (the file's contact excludes naming B_first or B_last): they collide; "
                           "mode 'implicit' (the default) or 'alpha' honour them", validation.SceneWarning,
                           stacklevel=4)
+        else:
+            warnings.warn(f"mode {mode!r} steps with mj_step, which cannot leave out a thick rod's self-contacts "
+                          f"between edges closer along it than pi r ({', '.join(r.rod for r in reaches)}): they "
+                          "push as if the rod were stiffer; mode 'implicit' (the default) or 'alpha' leave them out",
+                          validation.SceneWarning, stacklevel=4)
     if strain_limit is not None:
         step.strain_limit = strain_limit
     if getattr(step, "coupled", None) is not None:

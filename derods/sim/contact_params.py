@@ -22,7 +22,9 @@ class ContactParams:
     impedance closer to 1 makes contacts harder and lets less friction creep.
     condim: contact dimensionality (1 frictionless, 3 sliding friction, 4 or 6
     adds torsional / rolling). self_collision: edges of a rod collide with its
-    other edges (neighbours excluded); off by default. rod_rod: rods touch one
+    other edges, except those nearer along it than pi r (neighbours; for a rod thicker
+    than half its edge, more: :func:`derods.sim.exclusion.self_reach`; the implicit and
+    alpha modes, the others warn); off by default. rod_rod: rods touch one
     another (on by default; hair turns it off, its strands passing through each
     other; self_collision keeps it on). margin [m]: speculative contacts: rows
     are made for surfaces closer than this, and (in the implicit mode, against
