@@ -163,9 +163,12 @@ def test_rod_resting_on_the_floor_is_held_by_its_weight(dt):
     assert w.positions()[:, 2].min() > mat.radius - 1e-3
 
 
-def _box_on_cable(box_mass: float, trees: bool, monkeypatch) -> tuple[float, float]:
+def _box_on_cable(box_mass: float, trees: bool, monkeypatch, links: int = 0) -> tuple[float, float]:
     """A box (10 x 10 x 4 cm) on a free joint let down onto a cable (r = 6 mm) lying on the
-    floor; after 2 s: (the box's bottom, the cable's top) [m]."""
+    floor; after 2 s: (the box's bottom, the cable's top) [m]. links: a chain of that many
+    hinged 10 g balls on the box (centred on their hinges, so that turning they move no
+    mass across the cable, on which the box balances; touching nothing), its tree 6 +
+    links dofs."""
     if not trees:
         init = contact.ContactStep.__init__
 
@@ -174,9 +177,16 @@ def _box_on_cable(box_mass: float, trees: bool, monkeypatch) -> tuple[float, flo
             self.bodies = False
 
         monkeypatch.setattr(contact.ContactStep, "__init__", without_trees)
+    chain = ""
+    for i in range(links):
+        chain += (f'<body pos="0 {0.01 if i else 0} {0 if i else 0.03}"><joint type="hinge" '
+                  f'axis="{i % 2} {1 - i % 2} 0" damping="0.01"/><geom type="sphere" size="0.004" mass="0.01" '
+                  'contype="0" conaffinity="0"/>')
+    chain += "</body>" * links
     xml = f"""<mujoco><option timestep="0.002" integrator="implicitfast"/><worldbody>
       <geom name="floor" type="plane" size="2 2 0.1"/>
-      <body name="box" pos="0 0 0.05"><freejoint/><geom type="box" size="0.05 0.05 0.02" mass="{box_mass}"/></body>
+      <body name="box" pos="0 0 0.05"><freejoint/><geom type="box" size="0.05 0.05 0.02" mass="{box_mass}"/>
+      {chain}</body>
     </worldbody></mujoco>"""
     world = World(mujoco.MjSpec.from_string(xml), dt=2e-3, contact=derods.ContactParams(friction=1.0))
     r = 0.006
@@ -195,6 +205,31 @@ def test_a_box_rests_on_a_cable(monkeypatch):
     (measured 0.86 mm into a 6 mm cable, MuJoCo's soft contact under 10 N)."""
     bottom, top = _box_on_cable(1.0, True, monkeypatch)
     assert bottom > top - 0.006 / 4
+
+
+def test_a_tree_larger_than_the_band_rests_on_a_cable_as_its_border(monkeypatch):
+    """The same box carrying a chain of six hinged balls: its tree has 12 dofs, more than
+    the band's 9, and joins the contact solve as the band's border (Schur complement).
+    It rests on the cable as the 6-dof box does (measured 0.89 mm into it; the same solve
+    with a 6- or 8-dof tree as a border matches the band's to 1e-16 m); left to MuJoCo, as
+    trees larger than the band were until 2026-12-05, it sank to the floor (-0.04 mm)."""
+    bottom, top = _box_on_cable(1.0, True, monkeypatch, links=6)
+    assert bottom > top - 0.006 / 4
+
+
+def test_a_tree_solved_as_the_border_moves_as_in_the_band(monkeypatch):
+    """The border's Schur complement is the band's elimination in another order: an 8-dof
+    tree made to join as a border rests where the band puts it, to round-off."""
+    banded, _ = _box_on_cable(1.0, True, monkeypatch, links=2)
+    init = contact.ContactStep.__init__
+
+    def every_tree_large(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        self._large[:] = True
+
+    monkeypatch.setattr(contact.ContactStep, "__init__", every_tree_large)
+    bordered, _ = _box_on_cable(1.0, True, monkeypatch, links=2)
+    assert bordered == pytest.approx(banded, abs=1e-12)
 
 
 def test_left_to_mujoco_the_box_sinks_through_the_cable(monkeypatch):

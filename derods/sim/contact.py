@@ -17,8 +17,12 @@ static obstacle touches at most two neighbouring vertices, so the Hessian
 A + J^T D J stays banded and Newton's method costs one banded Cholesky per
 iteration. Rows that touch distant parts of a rod (self-contact, as in a knot)
 or two rods enter the Newton step as a low-rank update. Rows that couple a rod
-to other moving bodies, and elliptic-cone rows, keep the force MuJoCo's own
-solver computed for them in the same step.
+to other moving bodies join the solve with those bodies' whole kinematic trees:
+a tree of a few dofs as one more band block, a larger one (an arm with its hand)
+as the border of the band, by its Schur complement in each Newton step; the
+trees' other rows of a kind derods does not solve (equalities, joint limits) and
+elliptic-cone rows keep the force MuJoCo's own solver computed for them in the
+same step.
 
 Two corrections of MuJoCo's reference accelerations come first
 (:class:`ReferenceCorrection`). Bodies that move without dofs (mocap bodies,
@@ -44,7 +48,11 @@ import numpy as np
 from .._numba import contact as _k
 from .._numba.banded import cholesky_into
 from .._numba.calls import Bound
+from .._numba.contact_newton import Border, newton
 from .._numba.contact_rows import Contacts, correct_aref, efc_triplets
+from .._numba.coupled import bordered_rows, row_forces_into
+from .._numba.dense import lu_factor
+from .._numba.implicit import sm_solve_into
 from ..stencil import XX_BANDWIDTH
 from .implicit import ImplicitSystem
 from .trees import TreeDynamics, tree_dofs
@@ -75,9 +83,10 @@ class ContactStep:
     whose unconstrained acceleration is what MuJoCo's integrator would give it without
     constraints. So a contact sees the rod's stiffness and the body's inertia at once
     (MuJoCo alone would see a bare vertex mass, and a servo-driven finger would squeeze
-    through the rod); the tree's qacc is then written back. Trees of more dofs than the
-    band holds (``band_rows``), and ``excluded`` ones (solved elsewhere: holders), keep
-    MuJoCo's forces.
+    through the rod); the tree's qacc is then written back. A tree of more dofs than the
+    band holds (``band_rows``: an arm with a gripper) joins as the band's border instead
+    (:meth:`_with_border`); ``excluded`` trees (solved elsewhere: holders) keep MuJoCo's
+    forces.
     """
 
     def __init__(self, model: mujoco.MjModel, local_of_dof: np.ndarray, dof_off: np.ndarray, n: int,
@@ -90,11 +99,13 @@ class ContactStep:
         self.force = np.zeros(n)
         self.a = np.zeros(n)
         self._force_is_zero = True
-        # Each dof's tree if the tree may join a contact solve, else -1.
+        # Each dof's tree if the tree may join a contact solve, else -1: in the band, or
+        # as its border (large).
         dof_tree = model.dof_treeid.astype(np.int64)
-        joins = (model.tree_dofnum > 0) & (model.tree_dofnum <= band_rows)
+        joins = model.tree_dofnum > 0
         joins[dof_tree[self.local_of_dof >= 0]] = False  # the rods' own trees
         joins[np.asarray(excluded, dtype=np.int64)] = False
+        self._large = model.tree_dofnum > band_rows
         self._dof_tree = np.where(joins[dof_tree], dof_tree, -1)
         self.bodies = bool(np.any(self._dof_tree >= 0))
         self._dynamics = TreeDynamics(model) if self.bodies else None
@@ -109,7 +120,10 @@ class ContactStep:
         if nefc:
             trees = self._touching_trees(data) if self.bodies else ()
             self.joined_trees = np.asarray(trees, dtype=np.int64)
-            if len(trees):
+            large = self._large[trees] if len(trees) else None
+            if large is not None and large.any():
+                touched = self._with_border(data, system, a0, trees[~large], trees[large])
+            elif len(trees):
                 touched = self._with_trees(data, system, a0, trees)
             else:
                 touched = self._solve(data, system.arrays, self.local_of_dof, self.dof_off, a0, self.a, self.force)
@@ -144,6 +158,47 @@ class ContactStep:
         on_rod[row[self.local_of_dof[col] >= 0]] = True
         trees = self._dof_tree[col[on_rod[row]]]
         return np.unique(trees[trees >= 0])
+
+    def small_trees(self, trees: np.ndarray) -> np.ndarray:
+        """Those of ``trees`` (tree ids) that fit the band as blocks of their own."""
+        return trees[~self._large[trees]]
+
+    def _with_border(self, data, system, a0, small, large) -> int:
+        """The contact solve with the ``small`` trees' dofs appended to the rods' and the
+        ``large`` trees' as its border (:class:`derods._numba.contact_newton.Border`): their
+        metric M - h D, no stiffness between them and the rods (H_fq = 0), the rows that
+        touch only these dofs derods' (the trees' own contacts too), the others' forces
+        MuJoCo's. Every rod is in the one block."""
+        m, n = self.model, len(a0)
+        ext = WithTrees(m, data, system, self, small, a0)
+        dofs = tree_dofs(m, large)
+        k = len(dofs)
+        border_of_dof = np.full(self.nv, -1, dtype=np.int64)
+        border_of_dof[dofs] = np.arange(k)
+        metric = self._dynamics.metric(m, data, dofs)
+        rows = bordered_rows(self.rows(data), SUPPORTED, np.zeros(0, dtype=np.bool_), ext.local_of_dof,
+                             border_of_dof, ext.n, k, WINDOW)
+        start = ext.a0.copy()
+        if rows.ext.any():
+            e = rows.ext.copy()
+            sm_solve_into(ext.system, e)
+            start += e
+        a_q = np.linalg.solve(metric, data.qfrc_smooth[dofs] + rows.ext_q)
+        if not len(rows.efc):
+            a, lam = start, np.zeros(0)
+        else:
+            lu, piv = metric.copy(), np.zeros(k, dtype=np.int64)
+            lu_factor(lu, piv)  # the border's Schur complement: H_qq itself, H_fq being 0
+            no_coupling = np.zeros((ext.n, k))
+            weights = _k.row_weights(ext.system, rows.rows, no_coupling, rows.jq, lu, piv, rows.ratio,
+                                     np.zeros(0, dtype=np.int64))
+            a, a_q, lam, _ = newton(ext.system, start, rows.rows, rows.aref, weights,
+                                    Border(no_coupling, metric, rows.jq, a_q), MAX_ITER, TOL)
+        row_forces_into(rows, lam, self.force, data.efc_force)
+        self.a[:] = a[:n]
+        ext.write(data, a[n:])
+        self._dynamics.write(data, dofs, metric, a_q)
+        return 1
 
     def _with_trees(self, data, system, a0, trees) -> int:
         """The contact solve with the given trees' dofs appended to the rods' (see the class)."""

@@ -130,7 +130,9 @@ class CoupledStep:
             h_qq[:] = metric
             h_qq[np.ix_(c, c)] += s * k_q  # the held-dof block of the tree's
         # The rods' system, extended by the trees the rows bind to rods this step.
-        trees = self.contact._touching_trees(d) if (self.contact.bodies and d.nefc) else np.zeros(0, np.int64)
+        # (a tree too large for the band keeps MuJoCo's forces here: not yet a second border)
+        trees = (self.contact.small_trees(self.contact._touching_trees(d)) if (self.contact.bodies and d.nefc)
+                 else np.zeros(0, np.int64))
         self.contact.joined_trees = np.union1d(trees, hl.trees).astype(np.int64)  # the holders' trees always join
         ext_sys = WithTrees(m, d, sysm, self.contact, trees, step.a0)
         nn = ext_sys.n
