@@ -327,3 +327,52 @@ def test_a_thick_rod_does_not_push_on_its_own_nearby_edges(mode):
     assert kept == 0
     assert free[2] < 0.3 - 0.05  # it sags
     np.testing.assert_allclose(touching, free, atol=1e-12)
+
+
+def _jaws(jacobian: str) -> World:
+    """Two 0.2 kg jaws on slides (damping 5 N s/m), each its own tree, coupled by a joint
+    equality (the second follows the first), the first servo-driven, squeezing a cable
+    (r = 6 mm) lying on the floor; 1 s."""
+    r = 0.006
+    jaw = f'type="box" size="0.04 0.01 {r}" mass="0.2" friction="1"'
+    xml = f"""<mujoco><option timestep="0.002" integrator="implicitfast" jacobian="{jacobian}"/><worldbody>
+      <geom name="floor" type="plane" size="2 2 0.1"/>
+      <body name="jl" pos="0 -0.03 {r}"><joint name="fl" type="slide" axis="0 1 0" damping="5"/><geom {jaw}/></body>
+      <body name="jr" pos="0 0.03 {r}"><joint name="fr" type="slide" axis="0 -1 0" damping="5"/><geom {jaw}/></body>
+    </worldbody><equality><joint joint1="fr" joint2="fl"/></equality>
+    <actuator><position joint="fl" kp="2000" ctrlrange="0 0.03"/></actuator></mujoco>"""
+    world = World(mujoco.MjSpec.from_string(xml), dt=2e-3, contact=derods.ContactParams(friction=1.0),
+                  scene_checks=False)
+    x = shapes.straight(0.4, 30)
+    x = np.stack([x[:, 0] - 0.2, np.zeros(len(x)), np.full(len(x), r + 1e-4)], axis=1)
+    world.add_rod(derods.Rod(x, derods.Material(young=2e7, radius=r, density=1100.0)), "cable")
+    world.compile()
+    world.data.ctrl[0] = 0.03
+    world.step(500)
+    return world
+
+
+@pytest.mark.parametrize("jacobian", ["sparse", "dense"])
+def test_an_equality_between_joined_trees_is_solved_with_the_rods(jacobian):
+    """The jaws' trees join the contact solve where they squeeze the cable, and so does the
+    equality between them: its force is the one of derods' problem at the acceleration
+    derods applied, -D (J qacc - aref) with D = 1 / ((R / diagA) J H^-1 J^T), H = M - h D
+    on the jaws (to 1e-12 relative). Left with MuJoCo's force (until 2026-12-05, computed
+    while MuJoCo saw the cable's bare vertex masses), it was 12 % off that (14.06 N where
+    15.98 N balanced derods' step), and the jaws sat 3.07 mm from equal instead of 2.71
+    (MuJoCo's soft equality under that load)."""
+    world = _jaws(jacobian)
+    m, d = world.model, world.data
+    assert world.solved_bodies() == ["jl", "jr"]
+    eq = int(np.flatnonzero(d.efc_type[:d.nefc] == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY))[0])
+    jac = np.zeros((d.nefc, m.nv))
+    if jacobian == "sparse":
+        mujoco.mju_sparse2dense(jac, d.efc_J, d.efc_J_rownnz, d.efc_J_rowadr, d.efc_J_colind)
+    else:
+        jac[:] = d.efc_J.reshape(d.nefc, m.nv)
+    row = jac[eq]
+    metric = 0.2 + m.opt.timestep * 5.0  # each jaw's M - h D
+    weight = 1.0 / (d.efc_R[eq] / d.efc_diagA[eq] * (row[:2] ** 2).sum() / metric)
+    assert d.efc_force[eq] == pytest.approx(-weight * (row @ d.qacc - d.efc_aref[eq]), rel=1e-12)
+    fl, fr = d.qpos[m.joint("fl").qposadr[0]], d.qpos[m.joint("fr").qposadr[0]]
+    assert abs(fl - fr) < 2.8e-3

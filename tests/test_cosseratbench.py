@@ -96,12 +96,13 @@ def test_contact_takes_the_largest_friction_and_is_frictionless_without_any():
     assert adapter.contact_params(bare, 1e-3, 10).condim == 1
 
 
-def test_self_contact_needs_edges_a_diameter_long():
-    """MuJoCo's flex leaves only adjacent edges out of self-collision: edges shorter than
-    the rod's diameter would touch their neighbours' neighbours at rest, so such a rod
-    does not collide with itself (it still collides with other rods)."""
+def test_self_contact_at_any_resolution():
+    """A rod collides with itself wherever the scenario says it can reach itself, also
+    with edges shorter than its diameter (n = 100 here): the world leaves out its edges
+    nearer along it than pi r, which would otherwise touch at rest (until 2026-12-05 the
+    adapter turned self-contact off there, and the twisted rod passed through itself)."""
     scenario = Scenario(rods=(_rod(),), duration=1.0, self_contact=True)  # L = 1 m, r = 1 cm
-    assert adapter.self_contact(scenario, 50) and not adapter.self_contact(scenario, 51)
+    assert adapter.self_contact(scenario, 50) and adapter.self_contact(scenario, 100)
     assert not adapter.self_contact(replace(scenario, self_contact=False), 10)
     assert adapter.contact_params(scenario, 1e-3, 100).rod_rod
 

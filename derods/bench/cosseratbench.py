@@ -167,14 +167,10 @@ def _z_to(normal: np.ndarray) -> np.ndarray:
 
 def self_contact(scenario: Scenario, n_elements: int) -> bool:
     """Whether the rods collide with themselves: where the scenario says they can reach
-    themselves, and every rod's edges are at least a diameter long. MuJoCo's flex leaves
-    out only adjacent edges (sharing a vertex) from self-collision; edges two apart, one
-    edge length from each other, would touch at rest on a rod discretized finer than its
-    thickness (twist at n = 100: edges 1 cm, radius 1 cm, the rest shape pushed apart at
-    the first step)."""
-    if not scenario.self_contact:
-        return False
-    return all(rod.length / n_elements >= 2.0 * rod.radius for rod in scenario.rods)
+    themselves, at any resolution (a rod's edges nearer along it than pi r never touch,
+    :func:`derods.sim.exclusion.self_reach`: the twist at n = 100, edges 1 cm of radius 1
+    cm, no longer touches its edges two apart at rest). n_elements: kept for the callers."""
+    return bool(scenario.self_contact)
 
 
 def contact_params(scenario: Scenario, dt: float, n_elements: int) -> ContactParams:

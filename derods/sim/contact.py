@@ -55,6 +55,7 @@ from .._numba.dense import lu_factor
 from .._numba.implicit import sm_solve_into
 from ..stencil import XX_BANDWIDTH
 from .implicit import ImplicitSystem
+from .tree_rows import SolvableRows, solvable_rows
 from .trees import TreeDynamics, tree_dofs
 
 #: Width of a row's dof window that keeps the Hessian banded.
@@ -135,15 +136,25 @@ class ContactStep:
             self._force_is_zero = True
         return None
 
-    def _solve(self, data, system, local_of_dof, dof_off, a0, a_out, force_out) -> int:
+    def _solve(self, data, system, local_of_dof, dof_off, a0, a_out, force_out, efc=None) -> int:
         """The compiled contact stage over the given dofs (the rods', or the rods' and some
         trees'; system: A over them, :class:`derods._numba.implicit.System`), into a_out and
-        force_out; 1 if a row touched them."""
+        force_out; 1 if a row touched them. efc: the rows (default: MuJoCo's, :meth:`rows`)."""
         rest = (SUPPORTED, local_of_dof, dof_off, WINDOW, system, a0, a_out, force_out, MAX_ITER, TOL)
         # The rows are views of MuJoCo's data made afresh each step: flat arrays of its own
         # (not views into an array of structs, as data.contact's are, whose layout changes
-        # with their count), so their types are the data's.
-        return self._contact_step.keyed((data,) + rest, (self.rows(data),) + rest)
+        # with their count), so their types are the data's (and so are those of rows made
+        # from them, tree_rows.solvable_rows).
+        return self._contact_step.keyed((data,) + rest, (self.rows(data) if efc is None else efc,) + rest)
+
+    def _tree_rows(self, data, trees) -> tuple[_k.Efc, SolvableRows | None]:
+        """MuJoCo's rows with the equalities and joint limits among the joined ``trees``
+        solvable (:mod:`derods.sim.tree_rows`), and what to finish them with (None: none)."""
+        efc = self.rows(data)
+        inside = np.zeros(self.nv, dtype=bool)
+        inside[tree_dofs(self.model, trees)] = True
+        solvable = solvable_rows(efc, data, inside)
+        return (efc, None) if solvable is None else (solvable.efc, solvable)
 
     def rows(self, data: mujoco.MjData) -> _k.Efc:
         """MuJoCo's constraint rows of this step, as the compiled stage reads them."""
@@ -176,7 +187,8 @@ class ContactStep:
         border_of_dof = np.full(self.nv, -1, dtype=np.int64)
         border_of_dof[dofs] = np.arange(k)
         metric = self._dynamics.metric(m, data, dofs)
-        rows = bordered_rows(self.rows(data), SUPPORTED, np.zeros(0, dtype=np.bool_), ext.local_of_dof,
+        efc, solvable = self._tree_rows(data, np.concatenate([small, large]))
+        rows = bordered_rows(efc, SUPPORTED, np.zeros(0, dtype=np.bool_), ext.local_of_dof,
                              border_of_dof, ext.n, k, WINDOW)
         start = ext.a0.copy()
         if rows.ext.any():
@@ -194,7 +206,9 @@ class ContactStep:
                                      np.zeros(0, dtype=np.int64))
             a, a_q, lam, _ = newton(ext.system, start, rows.rows, rows.aref, weights,
                                     Border(no_coupling, metric, rows.jq, a_q), MAX_ITER, TOL)
-        row_forces_into(rows, lam, self.force, data.efc_force)
+        row_forces_into(rows, lam, self.force, efc.force)
+        if solvable is not None:
+            solvable.finish(data)
         self.a[:] = a[:n]
         ext.write(data, a[n:])
         self._dynamics.write(data, dofs, metric, a_q)
@@ -206,7 +220,10 @@ class ContactStep:
         ext = WithTrees(self.model, data, system, self, trees, a0)
         dof_off = np.concatenate([self.dof_off, n + np.cumsum(sizes)])
         a_out, force_out = np.zeros(ext.n), np.zeros(ext.n)
-        touched = self._solve(data, ext.system, ext.local_of_dof, dof_off, ext.a0, a_out, force_out)
+        efc, solvable = self._tree_rows(data, trees)
+        touched = self._solve(data, ext.system, ext.local_of_dof, dof_off, ext.a0, a_out, force_out, efc)
+        if solvable is not None:
+            solvable.finish(data)
         self.a[:], self.force[:] = a_out[:n], force_out[:n]
         ext.write(data, a_out[n:])
         return touched
