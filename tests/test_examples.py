@@ -19,6 +19,7 @@ EXAMPLES = {
     "knot": ["knot.mp4"],
     "hair_turn": ["hair_turn.mp4"],
     "grasp": ["grasp.mp4"],
+    "arm_grasp": ["arm_grasp.mp4"],
 }
 
 
