@@ -1,7 +1,8 @@
 """A robot as MuJoCo users build one grasps a cable (examples/arm_grasp.py, mjcf/arm.xml): a
 7-dof arm on position servos, gravity compensated, with a two-finger hand whose fingers are
-coupled by a joint equality (a 9-dof tree), lifts a cable off a table, holds it and lays it
-on a peg, at derods' default contact settings."""
+coupled by a joint equality (a 9-dof tree), or a parallel-linkage hand closed by two
+connects (13 dofs: beyond the band, the solve's border), lifts a cable off a table, holds
+it and lays it on a peg, at derods' default contact settings."""
 
 from __future__ import annotations
 
@@ -21,12 +22,15 @@ def arm():
     return module
 
 
+@pytest.mark.parametrize("hand", ["slide", "linkage"])
 @pytest.mark.parametrize("dt", [2e-3, 5e-3])
-def test_the_arm_lifts_the_cable_and_holds_it_without_creep(arm, dt):
+def test_the_arm_lifts_the_cable_and_holds_it_without_creep(arm, dt, hand):
     """Lifted clear of the table (its lowest vertex more than 0.2 m up) and held still for
     2 s: the cable creeps less than 1 mm in the pads (measured 0.15 / 0.06 mm at dt 2e-3 /
-    5e-3) and sinks less than a tenth of its radius into them (0.17 / 0.14 mm)."""
-    s = arm.run(dt, seconds=arm.HOLD[1])
+    5e-3, the linkage 0.08 / 0.03) and sinks less than a tenth of its radius into them
+    (0.17 / 0.14 mm, the linkage 0.20 / 0.14)."""
+    s = arm.run(dt, seconds=arm.HOLD[1], hand=hand)
+    assert s["tree_dofs"] == (9 if hand == "slide" else 13)
     assert arm.HOLD[1] - arm.HOLD[0] >= 2.0
     assert s["lifted"] > 0.2
     assert s["creep"] < 1e-3
@@ -46,4 +50,20 @@ def test_left_to_mujoco_the_arm_lifts_nothing(arm, monkeypatch):
 
     monkeypatch.setattr(contact.ContactStep, "__init__", without_trees)
     s = arm.run(5e-3, seconds=arm.HOLD[1])
+    assert s["lifted"] < 0.01
+
+
+def test_a_linkage_hand_left_to_mujoco_lifts_nothing(arm, monkeypatch):
+    """The linkage's 13-dof tree joins as the band's border; left to MuJoCo, as a tree
+    beyond the band was until 2026-12-05, its pads close through the cable."""
+    from derods.sim import contact
+
+    init = contact.ContactStep.__init__
+
+    def large_trees_to_mujoco(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        self._dof_tree[self._large[self._dof_tree] & (self._dof_tree >= 0)] = -1
+
+    monkeypatch.setattr(contact.ContactStep, "__init__", large_trees_to_mujoco)
+    s = arm.run(5e-3, seconds=arm.HOLD[1], hand="linkage")
     assert s["lifted"] < 0.01
