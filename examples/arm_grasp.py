@@ -24,7 +24,9 @@ Measured (2026-12-05, derods' default contact settings; tests/test_arm_grasp.py)
 0.15 / 0.06 mm over the 2 s hold at dt 2e-3 / 5e-3 (linkage 0.08 / 0.03), 0.17 / 0.14 mm
 deep in a pad of r = 6 mm (linkage 0.20 / 0.14), lifted 0.40 / 0.42 m clear of the table.
 With the arm's rows left to MuJoCo (its forces computed for bare vertex masses) the pads
-close through the cable and nothing is lifted.
+close through the cable and nothing is lifted. With pads of MuJoCo's default priority
+and solimp, derods' default contact lets the cable creep out and fall (273 mm over the
+hold); ``ContactParams(static_friction=True)`` holds it (0.009 mm, 0.53 mm deep).
 """
 
 from __future__ import annotations
@@ -177,13 +179,20 @@ class ArmIK:
         return self.q
 
 
-def build(dt: float = 2e-3, hand: str = "slide") -> World:
+def build(dt: float = 2e-3, hand: str = "slide", contact: derods.ContactParams = CONTACT,
+          plain_pads: bool = False) -> World:
     """The arm scene (its hand: a key of HANDS) with the cable lying on the table under the
-    hand's first pose."""
+    hand's first pose; the cable's contact settings ``contact``; ``plain_pads``: the pads
+    with MuJoCo's default priority and solimp (arm.xml makes them hard and lets them win
+    the mix, as robot models' pads often do)."""
     spec = mujoco.MjSpec.from_file(str(scenes.path("arm")))
     if hand == "linkage":
         linkage_hand(spec)
-    world = World(spec, dt=dt, mass_damping=1.0, contact=CONTACT)
+    if plain_pads:
+        for side in ("l", "r"):
+            pad = spec.geom(f"pad_{side}")
+            pad.priority, pad.solimp = 0, [0.9, 0.95, 0.001, 0.5, 2.0]
+    world = World(spec, dt=dt, mass_damping=1.0, contact=contact)
     x = shapes.straight(CABLE["length"], CABLE["n_edges"])
     x -= x.mean(axis=0)
     x += (CABLE_X, 0.0, TABLE_TOP + MATERIAL.radius + 1e-4)
@@ -251,11 +260,12 @@ def arc_length_of_closest(x: np.ndarray, p: np.ndarray) -> float:
 
 
 def run(dt: float = 2e-3, seconds: float | None = None, out: pathlib.Path | None = None,
-        size=(1280, 720), hand: str = "slide") -> dict:
+        size=(1280, 720), hand: str = "slide", **scene) -> dict:
     """Run the plan (``seconds``: all of it by default) at step dt [s] with ``hand`` (a key
-    of HANDS), filming to ``out`` if given. Returns :meth:`Grasp.summary`, the cable's
-    vertices at the end and the arm's tree's dofs."""
-    world = build(dt, hand)
+    of HANDS; ``scene``: :func:`build`'s contact and plain_pads), filming to ``out`` if
+    given. Returns :meth:`Grasp.summary`, the cable's vertices at the end and the arm's
+    tree's dofs."""
+    world = build(dt, hand, **scene)
     grasp = Grasp(world, hand)
     seconds = float(PLAN[-1, 0]) if seconds is None else seconds
     if out is None:
