@@ -329,16 +329,19 @@ def test_a_thick_rod_does_not_push_on_its_own_nearby_edges(mode):
     np.testing.assert_allclose(touching, free, atol=1e-12)
 
 
-def _jaws(jacobian: str) -> World:
+def _jaws(jacobian: str, limit: float | None = None) -> World:
     """Two 0.2 kg jaws on slides (damping 5 N s/m), each its own tree, coupled by a joint
     equality (the second follows the first), the first servo-driven, squeezing a cable
-    (r = 6 mm) lying on the floor; 1 s."""
+    (r = 6 mm) lying on the floor; 1 s. limit: the second's range ends there [m] (its pad
+    meets the cable near 12.3 mm)."""
     r = 0.006
     jaw = f'type="box" size="0.04 0.01 {r}" mass="0.2" friction="1"'
+    stop = "" if limit is None else f' range="0 {limit}" limited="true"'
     xml = f"""<mujoco><option timestep="0.002" integrator="implicitfast" jacobian="{jacobian}"/><worldbody>
       <geom name="floor" type="plane" size="2 2 0.1"/>
       <body name="jl" pos="0 -0.03 {r}"><joint name="fl" type="slide" axis="0 1 0" damping="5"/><geom {jaw}/></body>
-      <body name="jr" pos="0 0.03 {r}"><joint name="fr" type="slide" axis="0 -1 0" damping="5"/><geom {jaw}/></body>
+      <body name="jr" pos="0 0.03 {r}"><joint name="fr" type="slide" axis="0 -1 0" damping="5"{stop}/><geom {jaw}/>
+      </body>
     </worldbody><equality><joint joint1="fr" joint2="fl"/></equality>
     <actuator><position joint="fl" kp="2000" ctrlrange="0 0.03"/></actuator></mujoco>"""
     world = World(mujoco.MjSpec.from_string(xml), dt=2e-3, contact=derods.ContactParams(friction=1.0),
@@ -376,3 +379,23 @@ def test_an_equality_between_joined_trees_is_solved_with_the_rods(jacobian):
     assert d.efc_force[eq] == pytest.approx(-weight * (row @ d.qacc - d.efc_aref[eq]), rel=1e-12)
     fl, fr = d.qpos[m.joint("fl").qposadr[0]], d.qpos[m.joint("fr").qposadr[0]]
     assert abs(fl - fr) < 2.8e-3
+
+
+def test_a_joint_limit_of_a_joined_tree_is_solved_with_the_rods():
+    """The same jaws, the second's slide ending 0.5 mm past where its pad meets the cable:
+    its limit row holds it there with the force of derods' problem at the acceleration
+    derods applied, D max(aref - J qacc, 0) (to 1e-12 relative), as the equality's is."""
+    world = _jaws("sparse", limit=0.0128)
+    m, d = world.model, world.data
+    assert world.solved_bodies() == ["jl", "jr"]
+    rows = np.flatnonzero(d.efc_type[:d.nefc] == int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT))
+    assert len(rows) == 1
+    lim = int(rows[0])
+    jac = np.zeros((d.nefc, m.nv))
+    mujoco.mju_sparse2dense(jac, d.efc_J, d.efc_J_rownnz, d.efc_J_rowadr, d.efc_J_colind)
+    row = jac[lim]
+    metric = 0.2 + m.opt.timestep * 5.0
+    weight = 1.0 / (d.efc_R[lim] / d.efc_diagA[lim] * (row[:2] ** 2).sum() / metric)
+    expected = weight * max(d.efc_aref[lim] - row @ d.qacc, 0.0)
+    assert expected > 1.0  # the limit carries the squeeze
+    assert d.efc_force[lim] == pytest.approx(expected, rel=1e-12)
