@@ -233,3 +233,14 @@ def writhe(x: np.ndarray) -> float:
     omega = np.arcsin(dot(n1, n2)) + np.arcsin(dot(n2, n3)) + np.arcsin(dot(n3, n4)) + np.arcsin(dot(n4, n1))
     sign = np.sign(np.einsum("ij,ij->i", np.cross(d - c, b - a), r13))
     return float(np.sum(omega * sign) / (2.0 * np.pi))
+
+
+def arc_length_to(x: np.ndarray, p: np.ndarray) -> float:
+    """Arc length [m] along the polyline x (n, 3) [m] of its point closest to p (3,) [m]:
+    where along a rod something holds it (a gripper's pads, examples/grasp.py)."""
+    a, b = x[:-1], x[1:]
+    e = b - a
+    u = np.clip(np.einsum("ij,ij->i", p - a, e) / np.einsum("ij,ij->i", e, e), 0.0, 1.0)
+    k = int(np.argmin(np.linalg.norm(a + u[:, None] * e - p, axis=1)))
+    lengths = np.linalg.norm(e, axis=1)
+    return float(np.sum(lengths[:k]) + u[k] * lengths[k])

@@ -38,7 +38,7 @@ import mujoco
 import numpy as np
 
 import derods
-from derods import World, scenes, shapes
+from derods import World, geometry, scenes, shapes
 from derods.viz import filming
 
 #: The cable: 0.6 m, 6 mm radius, E = 2e7 Pa (a soft rubber cable), 40 edges, along x on
@@ -234,7 +234,7 @@ class Grasp:
         if HOLD[0] <= t <= HOLD[1]:
             x = world.positions("cable")
             mid = 0.5 * (d.geom_xpos[self.pad_ids[0]] + d.geom_xpos[self.pad_ids[1]])
-            self.grip_along.append(arc_length_of_closest(x, mid))
+            self.grip_along.append(geometry.arc_length_to(x, mid))
             self.lowest.append(float(x[:, 2].min()) - (TABLE_TOP + MATERIAL.radius))
             for c in d.contact[: d.ncon]:
                 if set(c.geom) & self.pads:
@@ -248,17 +248,6 @@ class Grasp:
                 "lifted": min(self.lowest, default=0.0)}
 
 
-def arc_length_of_closest(x: np.ndarray, p: np.ndarray) -> float:
-    """Arc length [m] along the polyline x (n, 3) of its point closest to p (3,)."""
-    a, b = x[:-1], x[1:]
-    e = b - a
-    u = np.clip(np.einsum("ij,ij->i", p - a, e) / np.einsum("ij,ij->i", e, e), 0.0, 1.0)
-    dist = np.linalg.norm(a + u[:, None] * e - p, axis=1)
-    k = int(np.argmin(dist))
-    lengths = np.linalg.norm(e, axis=1)
-    return float(np.sum(lengths[:k]) + u[k] * lengths[k])
-
-
 def run(dt: float = 2e-3, seconds: float | None = None, out: pathlib.Path | None = None,
         size=(1280, 720), hand: str = "slide", **scene) -> dict:
     """Run the plan (``seconds``: all of it by default) at step dt [s] with ``hand`` (a key
@@ -268,12 +257,7 @@ def run(dt: float = 2e-3, seconds: float | None = None, out: pathlib.Path | None
     world = build(dt, hand, **scene)
     grasp = Grasp(world, hand)
     seconds = float(PLAN[-1, 0]) if seconds is None else seconds
-    if out is None:
-        while world.time < seconds - 1e-9:
-            grasp(world)
-            world.step()
-    else:
-        filming.film(world, out, seconds, 30.0, size[0], size[1], "main", before_step=grasp, progress=False)
+    filming.step_or_film(world, seconds, grasp, out, size)
     result = grasp.summary()
     result["cable"] = world.positions("cable").copy()
     result["tree_dofs"] = int(world.model.tree_dofnum[world.model.body_treeid[world.model.body("hand").id]])

@@ -23,7 +23,7 @@ import mujoco
 import numpy as np
 
 import derods
-from derods import ContactParams, World, scenes, shapes
+from derods import ContactParams, World, geometry, scenes, shapes
 from derods.viz import filming
 
 #: The cable: 0.6 m, 6 mm radius, E = 2e7 Pa (a soft rubber cable), 40 edges.
@@ -61,17 +61,6 @@ def build() -> World:
     return world
 
 
-def arc_length_of_closest(x: np.ndarray, p: np.ndarray) -> float:
-    """Arc length [m] along the polyline x (n, 3) of its point closest to p (3,)."""
-    a, b = x[:-1], x[1:]
-    e = b - a
-    u = np.clip(np.einsum("ij,ij->i", p - a, e) / np.einsum("ij,ij->i", e, e), 0.0, 1.0)
-    dist = np.linalg.norm(a + u[:, None] * e - p, axis=1)
-    k = int(np.argmin(dist))
-    lengths = np.linalg.norm(e, axis=1)
-    return float(np.sum(lengths[:k]) + u[k] * lengths[k])
-
-
 def targets(t: float) -> tuple[float, float, float]:
     """The palm's x and z offsets [m] and the fingers' target [m] at time t [s]."""
     return tuple(float(np.interp(t, PLAN[:, 0], PLAN[:, k])) for k in (1, 2, 3))
@@ -106,7 +95,7 @@ class Grasp:
             # closest point to the point between the pads
             x = world.positions("cable")
             mid = 0.5 * (d.geom_xpos[self.pad_ids[0]] + d.geom_xpos[self.pad_ids[1]])
-            self.grip_offset.append(arc_length_of_closest(x, mid))
+            self.grip_offset.append(geometry.arc_length_to(x, mid))
             for c in d.contact[: d.ncon]:
                 if set(c.geom) & self.pads:
                     self.depth.append(-c.dist)
@@ -139,12 +128,7 @@ def run(seconds: float | None = None, out: pathlib.Path | None = None, size=(128
     world = build()
     grasp = Grasp(world)
     seconds = PLAN[-1, 0] if seconds is None else seconds
-    if out is None:
-        while world.time < seconds - 1e-9:
-            grasp(world)
-            world.step()
-    else:
-        filming.film(world, out, seconds, 30.0, size[0], size[1], "main", before_step=grasp, progress=False)
+    filming.step_or_film(world, seconds, grasp, out, size)
     out = grasp.summary(empty_gripper_force())
     out["cable"] = world.positions("cable").copy()
     return out

@@ -3,7 +3,9 @@ few measurements they share. Each helper says what it builds in SI units."""
 
 from __future__ import annotations
 
+import importlib.util
 import math
+import pathlib
 
 import numpy as np
 
@@ -111,3 +113,12 @@ def buckles(world: World, mat: derods.Material, circumference: float = 1.0, dt: 
         if bend[-1] > 0.05 * radius:
             return True
     return max(bend[30:]) > 1.02 * max(bend[20:30])
+
+
+def example(name: str):
+    """The script examples/<name>.py, imported as a module (its functions and constants)."""
+    path = pathlib.Path(__file__).parents[1] / "examples" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(f"{name}_example", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

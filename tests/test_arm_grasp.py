@@ -6,20 +6,13 @@ it and lays it on a peg, at derods' default contact settings."""
 
 from __future__ import annotations
 
-import importlib.util
-import pathlib
-
 import pytest
-
-ROOT = pathlib.Path(__file__).parents[1]
+import rods
 
 
 @pytest.fixture(scope="module")
 def arm():
-    spec = importlib.util.spec_from_file_location("arm_grasp_example", ROOT / "examples" / "arm_grasp.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return rods.example("arm_grasp")
 
 
 @pytest.mark.parametrize("hand", ["slide", "linkage"])

@@ -3,21 +3,14 @@ fingers' dofs join derods' contact solve (derods/sim/contact.py)."""
 
 from __future__ import annotations
 
-import importlib.util
-import pathlib
-
 import numpy as np
 import pytest
-
-ROOT = pathlib.Path(__file__).parents[1]
+import rods
 
 
 @pytest.fixture(scope="module")
 def grasp():
-    spec = importlib.util.spec_from_file_location("grasp_example", ROOT / "examples" / "grasp.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return rods.example("grasp")
 
 
 @pytest.fixture(scope="module")

@@ -152,3 +152,17 @@ def film(world, out, seconds: float, fps: float, width: int, height: int, camera
             raise
         drawer.finish()
     return {"frames": video.frames, "last": drawer.last, "quality": drawer.quality}
+
+
+def step_or_film(world, seconds: float, before_step=None, out=None, size=(1280, 720), camera="main",
+                 fps: float = 30.0) -> None:
+    """Step ``world`` for ``seconds`` [s] of simulated time, calling ``before_step(world)``
+    before each step (a controller); with ``out`` (a path), film it there as :func:`film`
+    does (``size`` (width, height) [px], ``camera``, ``fps``), without a progress bar."""
+    if out is None:
+        while world.time < seconds - 1e-9:
+            if before_step is not None:
+                before_step(world)
+            world.step()
+        return
+    film(world, out, seconds, fps, size[0], size[1], camera, before_step=before_step, progress=False)
