@@ -6,6 +6,10 @@ it and lays it on a peg, at derods' default contact settings."""
 
 from __future__ import annotations
 
+import pathlib
+import subprocess
+import sys
+
 import pytest
 import rods
 
@@ -95,3 +99,12 @@ def test_pads_of_default_contact_settings_hold_with_static_friction(arm):
     assert s["lifted"] > 0.2
     assert s["creep"] < 1e-3
     assert s["depth"] < 0.1 * arm.MATERIAL.radius
+
+
+def test_the_linkage_arm_runs_in_test_mode(tmp_path):
+    """The second arm, as CI runs the examples (--test: a small video of the whole plan)."""
+    script = pathlib.Path(__file__).parents[1] / "examples" / "arm_grasp.py"
+    done = subprocess.run([sys.executable, str(script), "--test", "--hand", "linkage", "--out", str(tmp_path)],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "(13-dof tree)" in done.stdout and (tmp_path / "arm_grasp_linkage.mp4").is_file()
