@@ -248,10 +248,13 @@ def contact_step(efc, supported_types, local_of_dof, dof_off, width, system, a0,
         for q in range(len(tw)):
             tw_lo_b[q] = compact[tw_lo[tw[q]]]
             tw_hi_b[q] = compact[tw_hi[tw[q]] - 1] + 1
-        block = System(np.ascontiguousarray(system.k_band[:, ids]), system.mass[ids], system.g[ids],
-                       system.tw_rod[tw], tw_lo_b, tw_hi_b, system.tw_c[tw],
-                       np.ascontiguousarray(system.a_band[:, ids]), system.lt[ids], system.z[ids], system.den[tw],
-                       system.weights)
+        if m == len(a0) and len(tw) == len(tw_lo):  # every dof in order: the system as it is
+            block = system
+        else:
+            block = System(np.ascontiguousarray(system.k_band[:, ids]), system.mass[ids], system.g[ids],
+                           system.tw_rod[tw], tw_lo_b, tw_hi_b, system.tw_c[tw],
+                           np.ascontiguousarray(system.a_band[:, ids]), system.lt[ids], system.z[ids],
+                           system.den[tw], system.weights)
         a_b = np.empty(m)
         f_b = np.empty(m)
         rod_b = np.searchsorted(dof_off, ids, side="right") - 1
