@@ -217,6 +217,43 @@ def test_a_tree_larger_than_the_band_rests_on_a_cable_as_its_border(monkeypatch)
     assert bottom > top - 0.006 / 4
 
 
+def test_two_large_trees_and_their_contact_join_one_border():
+    """Two 12-dof trees (a 1 kg box carrying six hinged balls each) resting on one cable,
+    one box also leaning on the other: both join the border at once, and the box-box
+    contact (a row on border dofs only) is solved with them. Both rest on the cable within
+    a quarter of its radius, and the cable carries their weight."""
+    r = 0.006
+    balls = "".join(f'<body pos="0 {0.01 if i else 0} {0 if i else 0.03}"><joint type="hinge" axis="{i % 2} '
+                    f'{1 - i % 2} 0" damping="0.01"/><geom type="sphere" size="0.004" mass="0.01" contype="0" '
+                    'conaffinity="0"/>' for i in range(6)) + "</body>" * 6
+    boxes = "".join(f'<body name="box{k}" pos="0 {y} {2 * r + 0.02 + 1e-3}"><freejoint/>'
+                    f'<geom type="box" size="0.05 0.05 0.02" mass="1"/>{balls}</body>'
+                    for k, y in ((0, -0.06), (1, 0.0399)))
+    xml = f"""<mujoco><option timestep="0.002" integrator="implicitfast"/><worldbody>
+      <geom name="floor" type="plane" size="2 2 0.1"/>{boxes}</worldbody></mujoco>"""
+    world = World(mujoco.MjSpec.from_string(xml), dt=2e-3, contact=derods.ContactParams(friction=1.0),
+                  scene_checks=False)
+    x = shapes.straight(0.6, 40)
+    x = np.stack([np.zeros(len(x)), x[:, 0] - x[:, 0].mean(), np.full(len(x), r + 1e-4)], axis=1)
+    world.add_rod(derods.Rod(x, derods.Material(young=2e7, radius=r, density=1100.0)), "cable")
+    world.compile()
+    m, d = world.model, world.data
+    assert all(m.tree_dofnum[m.body_treeid[m.body(f"box{k}").id]] == 12 for k in (0, 1))
+    world.step(1000)
+    assert {"box0", "box1"} <= set(world.solved_bodies())
+    for k in (0, 1):
+        assert d.xpos[m.body(f"box{k}").id][2] - 0.02 > 2 * r - r / 4
+    boxes_weight = 2 * (1.0 + 6 * 0.01) * 9.81
+    cable_weight = derods.Material(young=2e7, radius=r, density=1100.0).line_density * 0.6 * 9.81
+    # the floor carries the boxes through the cable, and the cable: net, the cable's weight
+    floor = sum(c.normal_force for c in world.contacts() if c.geom == m.geom("floor").id)
+    assert floor == pytest.approx(boxes_weight + cable_weight, rel=0.05)
+    assert world.contact_force("cable").sum(axis=0)[2] == pytest.approx(cable_weight, rel=0.05)
+    touching = [i for i in range(d.ncon) if {m.geom_bodyid[g] for g in d.contact[i].geom if g >= 0}
+                == {m.body("box0").id, m.body("box1").id}]
+    assert touching and all(d.contact[i].efc_address >= 0 for i in touching)  # the boxes lean on each other
+
+
 def test_a_tree_solved_as_the_border_moves_as_in_the_band(monkeypatch):
     """The border's Schur complement is the band's elimination in another order: an 8-dof
     tree made to join as a border rests where the band puts it, to round-off."""
