@@ -20,8 +20,9 @@ or two rods enter the Newton step as a low-rank update. Rows that couple a rod
 to other moving bodies join the solve with those bodies' whole kinematic trees:
 a tree of a few dofs as one more band block, a larger one (an arm with its hand)
 as the border of the band, by its Schur complement in each Newton step; the
-trees' other rows of a kind derods does not solve (equalities, joint limits) and
-elliptic-cone rows keep the force MuJoCo's own solver computed for them in the
+equalities and joint limits among the joined trees join too
+(:mod:`derods.sim.tree_rows`). Rows that reach bodies beyond them, and
+elliptic-cone rows, keep the force MuJoCo's own solver computed for them in the
 same step.
 
 Two corrections of MuJoCo's reference accelerations come first
