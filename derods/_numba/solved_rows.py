@@ -27,3 +27,21 @@ def rods_solve_all(is_sparse, nefc, nv, efc_j, rownnz, rowadr, colind, efc_type,
                 if efc_j[r * nv + c] != 0.0 and not solved_dof[c]:
                     return False
     return True
+
+
+@nb.njit(cache=True)
+def rows_touch_rods(is_sparse, nefc, nv, efc_j, rownnz, rowadr, colind, local_of_dof):
+    """True if a row of MuJoCo's constraint Jacobian (as :func:`rods_solve_all` reads it)
+    has an entry on a rod dof (local_of_dof (nv,) >= 0): exactly when the contact stage
+    has rows to solve (:func:`derods._numba.contact.contact_step` reads the same entries:
+    a sparse row's stored ones, a dense row's nonzeros)."""
+    for r in range(nefc):
+        if is_sparse:
+            for p in range(rowadr[r], rowadr[r] + rownnz[r]):
+                if local_of_dof[colind[p]] >= 0:
+                    return True
+        else:
+            for c in range(nv):
+                if efc_j[r * nv + c] != 0.0 and local_of_dof[c] >= 0:
+                    return True
+    return False

@@ -157,16 +157,16 @@ class GeneralizedAlpha(Implicit):
                          self._offset, self.v, self.other, self._rhs, self._kv, self._w, self.a0)
 
     def _contact(self, d: mujoco.MjData) -> np.ndarray | None:
+        if not self.euler_step and self.contact.touches(d):
+            # A contact touches a rod: this step is backward Euler's, from the forces at x0,
+            # and its one contact solve is Euler's. (Carried in the scheme's acceleration, a
+            # contact impulse would come back in the next steps' predictors, and its position
+            # response would be beta / gamma of Euler's: a rod dropped on the floor kept
+            # bouncing.)
+            self._euler()
         a = self.contact(d, self.system, self.a0)
         self._touched = a is not None
-        if a is None or self.euler_step:
-            return a
-        # A contact touches a rod: this step is backward Euler's, from the forces at x0.
-        # (Carried in the scheme's acceleration, a contact impulse would come back in the
-        # next steps' predictors, and its position response would be beta / gamma of
-        # Euler's: a rod dropped on the floor kept bouncing.)
-        self._euler()
-        return self.contact(d, self.system, self.a0)
+        return a
 
     def _integrated(self, a: np.ndarray) -> None:
         if self.euler_step:

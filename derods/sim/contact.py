@@ -54,6 +54,7 @@ from .._numba.contact_rows import Contacts, correct_aref, efc_triplets
 from .._numba.coupled import bordered_rows, row_forces_into
 from .._numba.dense import lu_factor
 from .._numba.implicit import sm_solve_into
+from .._numba.solved_rows import rows_touch_rods
 from ..stencil import XX_BANDWIDTH
 from .implicit import ImplicitSystem
 from .tree_rows import SolvableRows, solvable_rows
@@ -156,6 +157,13 @@ class ContactStep:
         inside[tree_dofs(self.model, trees)] = True
         solvable = solvable_rows(efc, data, inside)
         return (efc, None) if solvable is None else (solvable.efc, solvable)
+
+    def touches(self, data: mujoco.MjData) -> bool:
+        """Whether a constraint row of this step touches a rod dof (the stage would solve
+        rows, :meth:`__call__` would not return None), without solving them."""
+        return bool(data.nefc) and rows_touch_rods(self.is_sparse, data.nefc, self.nv, data.efc_J,
+                                                   data.efc_J_rownnz, data.efc_J_rowadr, data.efc_J_colind,
+                                                   self.local_of_dof)
 
     def rows(self, data: mujoco.MjData) -> _k.Efc:
         """MuJoCo's constraint rows of this step, as the compiled stage reads them."""
