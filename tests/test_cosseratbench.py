@@ -87,13 +87,13 @@ def test_contact_takes_the_largest_friction_and_is_frictionless_without_any():
     rope = _rod(friction=0.2)
     with_floor = Scenario(rods=(rope, _rod(friction=0.4)), duration=1.0,
                           obstacles=(Plane((0, 0, 0), (0, 0, 1), friction=0.1),), self_contact=False)
-    contact = adapter.contact_params(with_floor, 1e-3, 10)
+    contact = adapter.contact_params(with_floor, 1e-3)
     assert (contact.friction, contact.condim, contact.self_collision) == (0.4, 3, False)
     cylinder_only = Scenario(rods=(_rod(),), duration=1.0,
                              obstacles=(Cylinder((0, 0, 0), (0, 1, 0), 0.05, 0.1, friction=0.3),))
-    assert adapter.contact_params(cylinder_only, 1e-3, 10).condim == 3  # the cylinder's own friction
+    assert adapter.contact_params(cylinder_only, 1e-3).condim == 3  # the cylinder's own friction
     bare = Scenario(rods=(_rod(), _rod()), duration=1.0)
-    assert adapter.contact_params(bare, 1e-3, 10).condim == 1
+    assert adapter.contact_params(bare, 1e-3).condim == 1
 
 
 def test_self_contact_at_any_resolution():
@@ -102,9 +102,12 @@ def test_self_contact_at_any_resolution():
     nearer along it than pi r, which would otherwise touch at rest (until 2026-12-05 the
     adapter turned self-contact off there, and the twisted rod passed through itself)."""
     scenario = Scenario(rods=(_rod(),), duration=1.0, self_contact=True)  # L = 1 m, r = 1 cm
-    assert adapter.self_contact(scenario, 50) and adapter.self_contact(scenario, 100)
-    assert not adapter.self_contact(replace(scenario, self_contact=False), 10)
-    assert adapter.contact_params(scenario, 1e-3, 100).rod_rod
+    assert adapter.contact_params(scenario, 1e-3).self_collision
+    assert not adapter.contact_params(replace(scenario, self_contact=False), 1e-3).self_collision
+    assert adapter.contact_params(scenario, 1e-3).rod_rod
+    for n in (50, 100):  # the built world's flex collides with itself at either resolution
+        model = adapter.DerodsSolver().build(scenario, n_elements=n, n_frames=2).world.model
+        assert model.flex_selfcollide[0] != 0
 
 
 def test_each_rod_keeps_its_own_friction():

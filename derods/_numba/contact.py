@@ -17,7 +17,7 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from .banded import inverse_band, solve_columns, solve_into
+from .banded import inverse_band, solve_columns
 from .contact_blocks import partition
 from .contact_newton import newton, no_border
 from .dense import inverse_quadratic_rows
@@ -147,13 +147,7 @@ def _far_diagonal(system, rows, zb, rod_of_dof, out):
         col[:] = 0.0
         for a in range(lo, hi):
             col[fcol[a]] = fval[a]
-        solve_into(lt, col, 0, n)
-        for i in range(len(tw_lo)):  # A^-1 = B^-1 - w z z^T for each twist term
-            gx = 0.0
-            for j in range(tw_lo[i], tw_hi[i]):
-                gx += system.g[j] * col[j]
-            for j in range(tw_lo[i], tw_hi[i]):
-                col[j] -= z[j] * s * tw_c[i] / den[i] * gx
+        sm_solve_into(system, col)  # A^-1 J^T, twist terms included
         acc = 0.0
         for a in range(lo, hi):
             acc += fval[a] * col[fcol[a]]

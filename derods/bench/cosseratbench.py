@@ -165,24 +165,19 @@ def _z_to(normal: np.ndarray) -> np.ndarray:
     return q
 
 
-def self_contact(scenario: Scenario, n_elements: int) -> bool:
-    """Whether the rods collide with themselves: where the scenario says they can reach
-    themselves, at any resolution (a rod's edges nearer along it than pi r never touch,
-    :func:`derods.sim.exclusion.self_reach`: the twist at n = 100, edges 1 cm of radius 1
-    cm, no longer touches its edges two apart at rest). n_elements: kept for the callers."""
-    return bool(scenario.self_contact)
-
-
-def contact_params(scenario: Scenario, dt: float, n_elements: int) -> ContactParams:
+def contact_params(scenario: Scenario, dt: float) -> ContactParams:
     """Contact for every rod of a scenario: frictionless rows where nothing has
-    friction, self-contact as :func:`self_contact` says. (Each rod's own coefficient is
+    friction, self-contact where the scenario says a rod can reach itself, at any
+    resolution (a world leaves out a rod's self-contacts nearer along it than pi r,
+    :func:`derods.sim.exclusion.self_reach`: the twist at n = 100, edges 1 cm of radius
+    1 cm, does not touch its edges two apart at rest). (Each rod's own coefficient is
     set on its flex once built: MuJoCo takes the larger of the two things touching,
     the suite's rule.)"""
     friction = max([r.friction for r in scenario.rods] + [0.0])
     any_friction = friction > 0 or any(o.friction > 0 for o in scenario.obstacles)
     return ContactParams(friction=friction, condim=3 if any_friction else 1,
                          solref=(CONTACT_TIME_STEPS * dt, 1.0), solimp=CONTACT_SOLIMP,
-                         self_collision=self_contact(scenario, n_elements), rod_rod=True,
+                         self_collision=bool(scenario.self_contact), rod_rod=True,
                          margin=CONTACT_MARGIN_RADII * min(r.radius for r in scenario.rods),
                          static_friction=True)
 
@@ -216,7 +211,7 @@ class DerodsSolver:
     def settings(self, scenario: Scenario, *, n_elements: int, n_frames: int) -> dict:
         """The numerical choices made for a scenario, as JSON values."""
         dt, _ = self._steps(scenario, n_frames)
-        contact = contact_params(scenario, dt, n_elements)
+        contact = contact_params(scenario, dt)
         return {
             "mode": MODE,
             "time_step": dt,
@@ -255,7 +250,7 @@ class DerodsSolver:
                 driven.append((mocap, point, motion))
             entries.append((rod, disc, holders))
         world = World(spec, dt=dt, gravity=scenario.gravity, mode=MODE, integrator=INTEGRATOR,
-                      mass_damping=self._damping(scenario), contact=contact_params(scenario, dt, n_elements))
+                      mass_damping=self._damping(scenario), contact=contact_params(scenario, dt))
         for i, (rod, disc, holders) in enumerate(entries):
             world.add_rod(_derods_rod(rod, disc), f"r{i}", x=disc.x0,
                           start=_ENDS[rod.start], end=_ENDS[rod.end],

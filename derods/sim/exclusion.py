@@ -62,13 +62,12 @@ class Exclusions:
 
     def __init__(self, model: mujoco.MjModel, pairs: list[ExcludedPair], reaches: list[SelfReach] = ()):
         self.model = model
+        flex = lambda name: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_FLEX, name)  # noqa: E731
         # per flex: the self reach (0: none) and, for a ring, its edges (0: open)
         self._reach = np.zeros(model.nflex, dtype=np.int64)
         self._ring = np.zeros(model.nflex, dtype=np.int64)
         for r in reaches:
-            f = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_FLEX, r.rod)
-            self._reach[f], self._ring[f] = r.reach, r.n_edges if r.closed else 0
-        flex = lambda name: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_FLEX, name)  # noqa: E731
+            self._reach[flex(r.rod)], self._ring[flex(r.rod)] = r.reach, r.n_edges if r.closed else 0
         # (flex, element, body or -1, other flex or -1, other element or -1), one per combination
         rows = []
         for p in pairs:
