@@ -1,6 +1,7 @@
 """The contact problem's Newton solve, compiled: minimize MuJoCo's primal objective in the
 implicit step's metric, the band's rows by its Cholesky factor, far rows (self-contact,
-rod-rod) by Woodbury's identity, and dofs that border the band (bodies holding rods,
+rod-rod) by Woodbury's identity (past FAR_DENSE_MAX of them, by conjugate gradients:
+:mod:`derods._numba.contact_cg`), and dofs that border the band (bodies holding rods,
 :mod:`derods.sim.coupled`) by their Schur complement. The stage around it (rows from
 MuJoCo, weights, blocks of rods) is :mod:`derods._numba.contact`; the rows' products are
 :mod:`derods._numba.contact_rows`.
@@ -16,64 +17,18 @@ import numpy as np
 from .banded import cholesky_into, solve_columns, solve_into
 from .dense import spd_factor as _spd_factor, spd_solve_factored as _spd_solve_factored
 from .contact_rows import FAR_DENSE_MAX, apply_all, exact_line_search, far_columns, rows_band, transpose_apply_all
-from .implicit import k_matvec_into
+from .contact_cg import cg_direction
+from .implicit import k_matvec_into, twist_spans, twist_update_columns
 
 #: m dofs that border the band of a contact solve (bodies holding rods, solved with them):
 #: h_fq (n, m) and h_qq (m, m) the coupled step matrix's border and corner, j_q (k, m) the
 #: rows' entries on them, a0 (m,) their unconstrained acceleration.
 Border = namedtuple("Border", ["h_fq", "h_qq", "j_q", "a0"])
 
-#: Conjugate gradients for Newton's direction among many far rows (:func:`_cg_direction`):
-#: the residual's norm relative to the gradient's, and an iteration cap. An inexact
-#: direction costs Newton an iteration or two, not accuracy (it stops on the gradient, TOL
-#: of :mod:`derods.sim.contact`): 25 cables of 41 vertices in a heap took 7-8 Newton
-#: iterations and ~330 CG iterations a step at 1e-3, 6 and ~690 at 1e-10 (half the step).
-CG_TOL = 1e-3
-CG_MAX_ITER = 500
-
-
 @nb.njit(cache=True)
 def no_border(n, k):
     """The empty border (m = 0) of a solve over n dofs and k rows."""
     return Border(np.zeros((n, 0)), np.zeros((0, 0)), np.zeros((k, 0)), np.zeros(0))
-
-
-@nb.njit(cache=True)
-def _twist_update(system, ztw, zspan, cols):
-    """Sherman-Morrison for each twist term of ``system`` (:class:`derods._numba.implicit.System`)
-    in turn, on every column of cols (n, m): x -= z_i (s c_i g_i.x) / (1 + s c_i g_i.z_i),
-    z_i = ztw[:, i] (B^-1 g_i), nonzero only in [zspan[i, 0], zspan[i, 1]) (its rod's
-    dofs, and a rod a banded row joins to it: :func:`_spans`)."""
-    g, tw_lo, tw_hi, tw_c, s = system.g, system.tw_lo, system.tw_hi, system.tw_c, system.weights[1]
-    for i in range(len(tw_lo)):
-        lo, hi = tw_lo[i], tw_hi[i]
-        gz = 0.0
-        for j in range(lo, hi):
-            gz += g[j] * ztw[j, i]
-        sc = s * tw_c[i]
-        for c in range(cols.shape[1]):
-            gx = 0.0
-            for j in range(lo, hi):
-                gx += g[j] * cols[j, c]
-            f = sc * gx / (1.0 + sc * gz)
-            for j in range(zspan[i, 0], zspan[i, 1]):
-                cols[j, c] -= ztw[j, i] * f
-
-
-@nb.njit(cache=True)
-def _spans(ztw, zspan):
-    """Each column's nonzero range of ztw (n, T) into zspan (T, 2): B is block diagonal
-    by rod, so B^-1 g_i is exactly zero beyond the rods a twist term's rod is banded with,
-    and the updates skip only exact zeros (the same numbers, a hundred rods' worth of
-    work less per solve in a pile)."""
-    n = ztw.shape[0]
-    for i in range(ztw.shape[1]):
-        lo, hi = n, 0
-        for j in range(n):
-            if ztw[j, i] != 0.0:
-                lo = min(lo, j)
-                hi = j + 1
-        zspan[i, 0], zspan[i, 1] = min(lo, hi), hi
 
 
 @nb.njit(cache=True)
@@ -125,7 +80,7 @@ def newton(system, a0, rows, aref, d, border, max_iter, tol):
     lt = np.empty((n, a_band.shape[0]))
     ztw = np.zeros((n, n_tw))
     zspan = np.zeros((n_tw, 2), dtype=np.int64)
-    # Many far rows and no border: Newton's direction by conjugate gradients (_cg_direction).
+    # Many far rows and no border: Newton's direction by conjugate gradients (contact_cg).
     iterative = m == 0 and kf > FAR_DENSE_MAX
     zf = np.zeros((n, 0 if iterative else kf))
     zf_ready = False
@@ -178,14 +133,14 @@ def newton(system, a0, rows, aref, d, border, max_iter, tol):
                     ztw[j, i] = g[j]
             if n_tw:
                 solve_columns(lt, ztw, 0, n, 0)
-                _spans(ztw, zspan)
+                twist_spans(ztw, zspan)
             w_factored[:] = w[:kb]
             zf_ready = False
         # The Newton direction: -(B + twist)^-1 grad, then the far rows by Woodbury.
         for j in range(n):
             y[j, 0] = grad[j]
         solve_into(lt, y[:, 0], 0, n)
-        _twist_update(system, ztw, zspan, y)
+        twist_update_columns(system, ztw, zspan, y)
         n_act = 0
         for r in range(kf):
             if w[kb + r] > 0:
@@ -193,12 +148,12 @@ def newton(system, a0, rows, aref, d, border, max_iter, tol):
         for j in range(n):
             delta[j] = -y[j, 0]
         if n_act and iterative:
-            _cg_direction(system, rows, w, lt, ztw, zspan, grad, delta)
+            cg_direction(system, rows, w, lt, ztw, zspan, grad, delta)
         elif n_act:
             if not zf_ready:
                 zf[:] = far_cols
                 solve_columns(lt, zf, 0, n, far_first)
-                _twist_update(system, ztw, zspan, zf)
+                twist_update_columns(system, ztw, zspan, zf)
                 zf_ready = True
             act = np.empty(n_act, dtype=np.int64)
             q = 0
@@ -228,7 +183,7 @@ def newton(system, a0, rows, aref, d, border, max_iter, tol):
             cw, ew = _border_blocks(rows, hfq, hqq, jq, w, n)
             zc_ = cw.copy()
             solve_columns(lt, zc_, 0, n, 0)
-            _twist_update(system, ztw, zspan, zc_)
+            twist_update_columns(system, ztw, zspan, zc_)
             if n_act:
                 _woodbury_columns(zf, act, small, fptr, fcol, fval, zc_)
             for p in range(m):
@@ -296,79 +251,6 @@ def newton(system, a0, rows, aref, d, border, max_iter, tol):
         if r < 0:
             lam[i] = -d[i] * r
     return a, aq, lam, it
-
-
-@nb.njit(cache=True)
-def _h_apply(system, rows, w, v, kv, out):
-    """out (n,) = H v, H = A + J^T W J (A: ``system``; J: ``rows``, weights w (k,));
-    kv (n,): scratch."""
-    mass, m_coef, s = system.mass, system.weights[0], system.weights[1]
-    n = len(v)
-    k_matvec_into(system, v, kv)
-    jv = apply_all(rows, v)
-    for i in range(len(jv)):
-        jv[i] *= w[i]
-    jt = transpose_apply_all(rows, jv, n)
-    for j in range(n):
-        out[j] = s * kv[j] + m_coef * mass[j] * v[j] + jt[j]
-
-
-@nb.njit(cache=True)
-def _cg_direction(system, rows, w, lt, ztw, zspan, grad, delta):
-    """Newton's direction delta (n,) = -H^-1 grad, H = A + J^T W J over every active row
-    (weights w), by conjugate gradients from zero preconditioned with B + twist, H less
-    its far rows (factored: lt, ztw, zspan; see :func:`newton`): each iterate lowers Newton's
-    quadratic model, so any is a descent direction. Each far row's weight times its
-    Delassus entry is MuJoCo's d / (1 - d) (the rows' weights keep its impedance), so the
-    far rows lift H's spectrum over B's by tens, and CG_TOL is met in tens of iterations
-    where Woodbury's dense system of the active far rows grows as their cube (a pile's
-    thousands). Writes delta; returns the iterations."""
-    n = len(grad)
-    x = np.zeros(n)
-    r = np.empty(n)
-    hp = np.empty(n)
-    kv = np.empty(n)
-    zc = np.empty((n, 1))
-    bnorm = 0.0
-    for j in range(n):
-        r[j] = -grad[j]
-        bnorm += grad[j] * grad[j]
-    bnorm = np.sqrt(bnorm)
-    zc[:, 0] = r
-    solve_into(lt, zc[:, 0], 0, n)
-    _twist_update(system, ztw, zspan, zc)
-    p = zc[:, 0].copy()
-    rz = 0.0
-    for j in range(n):
-        rz += r[j] * zc[j, 0]
-    it = 0
-    for it in range(1, CG_MAX_ITER + 1):
-        _h_apply(system, rows, w, p, kv, hp)
-        php = 0.0
-        for j in range(n):
-            php += p[j] * hp[j]
-        if not php > 0.0:
-            break
-        alpha = rz / php
-        rnorm = 0.0
-        for j in range(n):
-            x[j] += alpha * p[j]
-            r[j] -= alpha * hp[j]
-            rnorm += r[j] * r[j]
-        if np.sqrt(rnorm) <= CG_TOL * bnorm:
-            break
-        zc[:, 0] = r
-        solve_into(lt, zc[:, 0], 0, n)
-        _twist_update(system, ztw, zspan, zc)
-        rz_new = 0.0
-        for j in range(n):
-            rz_new += r[j] * zc[j, 0]
-        beta = rz_new / rz
-        rz = rz_new
-        for j in range(n):
-            p[j] = zc[j, 0] + beta * p[j]
-    delta[:] = x
-    return it
 
 
 @nb.njit(cache=True)

@@ -50,7 +50,8 @@ from .._numba import contact as _k
 from .._numba.banded import cholesky_into
 from .._numba.calls import Bound
 from .._numba.contact_newton import Border, newton
-from .._numba.contact_rows import Contacts, correct_aref, efc_triplets
+from .._numba.contact_reference import Contacts, correct_aref
+from .._numba.contact_rows import efc_triplets
 from .._numba.coupled import bordered_rows, row_forces_into
 from .._numba.dense import lu_factor
 from .._numba.implicit import sm_solve_into

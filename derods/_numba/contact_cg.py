@@ -1,0 +1,96 @@
+"""Newton's direction among many far rows, compiled: conjugate gradients on H = A + J^T W J,
+preconditioned with the band's factor (the far rows left out), for the contact solve of
+:mod:`derods._numba.contact_newton` when Woodbury's dense system of the active far rows
+would grow as their cube (a pile's thousands of rod-rod rows).
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from .banded import solve_into
+from .contact_rows import apply_all, transpose_apply_all
+from .implicit import k_matvec_into, twist_update_columns
+
+#: Conjugate gradients for Newton's direction among many far rows (:func:`cg_direction`):
+#: the residual's norm relative to the gradient's, and an iteration cap. An inexact
+#: direction costs Newton an iteration or two, not accuracy (it stops on the gradient, TOL
+#: of :mod:`derods.sim.contact`): 25 cables of 41 vertices in a heap took 7-8 Newton
+#: iterations and ~330 CG iterations a step at 1e-3, 6 and ~690 at 1e-10 (half the step).
+CG_TOL = 1e-3
+CG_MAX_ITER = 500
+
+
+
+@nb.njit(cache=True)
+def h_apply(system, rows, w, v, kv, out):
+    """out (n,) = H v, H = A + J^T W J (A: ``system``; J: ``rows``, weights w (k,));
+    kv (n,): scratch."""
+    mass, m_coef, s = system.mass, system.weights[0], system.weights[1]
+    n = len(v)
+    k_matvec_into(system, v, kv)
+    jv = apply_all(rows, v)
+    for i in range(len(jv)):
+        jv[i] *= w[i]
+    jt = transpose_apply_all(rows, jv, n)
+    for j in range(n):
+        out[j] = s * kv[j] + m_coef * mass[j] * v[j] + jt[j]
+
+
+@nb.njit(cache=True)
+def cg_direction(system, rows, w, lt, ztw, zspan, grad, delta):
+    """Newton's direction delta (n,) = -H^-1 grad, H = A + J^T W J over every active row
+    (weights w), by conjugate gradients from zero preconditioned with B + twist, H less
+    its far rows (factored: lt, ztw, zspan; see :func:`derods._numba.contact_newton.newton`): each iterate lowers Newton's
+    quadratic model, so any is a descent direction. Each far row's weight times its
+    Delassus entry is MuJoCo's d / (1 - d) (the rows' weights keep its impedance), so the
+    far rows lift H's spectrum over B's by tens, and CG_TOL is met in tens of iterations
+    where Woodbury's dense system of the active far rows grows as their cube (a pile's
+    thousands). Writes delta; returns the iterations."""
+    n = len(grad)
+    x = np.zeros(n)
+    r = np.empty(n)
+    hp = np.empty(n)
+    kv = np.empty(n)
+    zc = np.empty((n, 1))
+    bnorm = 0.0
+    for j in range(n):
+        r[j] = -grad[j]
+        bnorm += grad[j] * grad[j]
+    bnorm = np.sqrt(bnorm)
+    zc[:, 0] = r
+    solve_into(lt, zc[:, 0], 0, n)
+    twist_update_columns(system, ztw, zspan, zc)
+    p = zc[:, 0].copy()
+    rz = 0.0
+    for j in range(n):
+        rz += r[j] * zc[j, 0]
+    it = 0
+    for it in range(1, CG_MAX_ITER + 1):
+        h_apply(system, rows, w, p, kv, hp)
+        php = 0.0
+        for j in range(n):
+            php += p[j] * hp[j]
+        if not php > 0.0:
+            break
+        alpha = rz / php
+        rnorm = 0.0
+        for j in range(n):
+            x[j] += alpha * p[j]
+            r[j] -= alpha * hp[j]
+            rnorm += r[j] * r[j]
+        if np.sqrt(rnorm) <= CG_TOL * bnorm:
+            break
+        zc[:, 0] = r
+        solve_into(lt, zc[:, 0], 0, n)
+        twist_update_columns(system, ztw, zspan, zc)
+        rz_new = 0.0
+        for j in range(n):
+            rz_new += r[j] * zc[j, 0]
+        beta = rz_new / rz
+        rz = rz_new
+        for j in range(n):
+            p[j] = zc[j, 0] + beta * p[j]
+    delta[:] = x
+    return it

@@ -1,0 +1,106 @@
+"""Reference accelerations of MuJoCo's contact rows corrected for what derods solves,
+compiled: the motion of bodies moved without dofs (mocap bodies), and speculative rows
+(a contact margin). The stage around it is :class:`derods.sim.contact.ReferenceCorrection`.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numba as nb
+import numpy as np
+
+
+class Contacts(NamedTuple):
+    """MuJoCo's contacts (data.contact): count (ncon); per contact its geoms geom (ncon, 2),
+    point pos (ncon, 3) [m], frame (ncon, 9), dim, friction (ncon, 5) and first row
+    efc_address."""
+
+    count: int
+    geom: np.ndarray
+    pos: np.ndarray
+    frame: np.ndarray
+    dim: np.ndarray
+    friction: np.ndarray
+    efc_address: np.ndarray
+
+
+@nb.njit(cache=True)
+def correct_aref(contacts, geom_body, moving, body_vel, xpos, efc_type, efc_pos, efc_margin, efc_vel, efc_kbip,
+                 efc_aref, h, pyramidal, frictionless):
+    """Correct MuJoCo's contact rows' reference accelerations for what derods solves.
+
+    1. Bodies that move without dofs (mocap bodies): MuJoCo's row i has
+       aref_i = -B_i (J_i qdot) - K_i I_i r_i and cannot see their motion; a body with
+       velocity (v, w) adds w_i = j_i . (relative velocity, geom[1]'s side minus geom[0]'s,
+       at the contact point) to the row's velocity. moving (nbody,) bool; body_vel
+       (nbody, 6): linear [m/s] and angular [rad/s] velocity, world frame; xpos (nbody, 3).
+    2. Speculative rows (a margin > 0, see :class:`derods.sim.contact_params.ContactParams`):
+       a row not yet touching (distance d >= 0) only keeps the end-of-step position
+       from crossing the surface, d + h (v_i + h a_i) >= 0, so aref_i = -(d / h + v_i) / h;
+       a moving body is already posed for the end of the step when MuJoCo measures d, so
+       its velocity enters v_i only where it approaches (keeping clear of its next pose),
+       never to allow the rod closer than its surface now;
+       a touching one is MuJoCo's soft row without the margin, -B_i v_i - K_i I_i d.
+    Pyramidal and frictionless rows; elliptic ones are left as they are. contacts: MuJoCo's
+    (:class:`Contacts`); efc_*: its rows' arrays; h: step [s].
+    """
+    ncon, con_geom, con_pos, con_frame = contacts.count, contacts.geom, contacts.pos, contacts.frame
+    con_dim, con_friction, con_efc = contacts.dim, contacts.friction, contacts.efc_address
+    rel = np.empty(6)
+    for c in range(ncon):
+        adr = con_efc[c]
+        if adr < 0:
+            continue
+        t = efc_type[adr]
+        if t == frictionless:
+            n_rows = 1
+        elif t == pyramidal:
+            n_rows = 2 * (con_dim[c] - 1)
+        else:
+            continue
+        touched = False
+        rel[:] = 0.0
+        for side in range(2):
+            g = con_geom[c, side]
+            if g < 0:
+                continue
+            b = geom_body[g]
+            if not moving[b]:
+                continue
+            touched = True
+            sign = 1.0 if side == 1 else -1.0
+            rx = con_pos[c, 0] - xpos[b, 0]
+            ry = con_pos[c, 1] - xpos[b, 1]
+            rz = con_pos[c, 2] - xpos[b, 2]
+            wx, wy, wz = body_vel[b, 3], body_vel[b, 4], body_vel[b, 5]
+            vx = body_vel[b, 0] + wy * rz - wz * ry
+            vy = body_vel[b, 1] + wz * rx - wx * rz
+            vz = body_vel[b, 2] + wx * ry - wy * rx
+            for k in range(3):
+                f0, f1, f2 = con_frame[c, 3 * k], con_frame[c, 3 * k + 1], con_frame[c, 3 * k + 2]
+                rel[k] += sign * (f0 * vx + f1 * vy + f2 * vz)
+                rel[3 + k] += sign * (f0 * wx + f1 * wy + f2 * wz)
+        if not touched and efc_margin[adr] <= 0.0:
+            continue
+        for q in range(n_rows):
+            r = adr + q
+            w = rel[0]
+            if t == pyramidal:
+                # rows n + mu_k c_k, n - mu_k c_k; c: slide along t1, t2, spin about n, roll about t1, t2
+                k = q // 2
+                mu = con_friction[c, k]
+                w += mu * rel[1 + k] if q % 2 == 0 else -mu * rel[1 + k]
+            vel = efc_vel[r] + w
+            if efc_margin[r] > 0.0:
+                d = efc_pos[r]
+                if d >= 0.0:
+                    # The body is already posed for the end of the step: its own motion
+                    # only counts where it comes closer (the next pose), never as room.
+                    if rel[0] > 0.0:
+                        vel -= rel[0]
+                    efc_aref[r] = -(d / h + vel) / h
+                else:
+                    efc_aref[r] = -efc_kbip[r, 1] * vel - efc_kbip[r, 0] * efc_kbip[r, 2] * d
+            else:
+                efc_aref[r] -= efc_kbip[r, 1] * w
