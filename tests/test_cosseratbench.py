@@ -197,3 +197,20 @@ def test_a_driven_clamp_lowers_the_pile_rope():
     displacement, _ = motion.pose(0.2)
     np.testing.assert_allclose(trajectory.positions[0][-1, 0] - trajectory.positions[0][0, 0], displacement,
                                atol=1e-6)
+
+
+@pytest.mark.parametrize("overhang, holds", [(0.8, True), (0.95, True), (1.1, False)])
+def test_the_capstan_holds_below_its_holding_overhang_and_slides_beyond(overhang, holds):
+    """The suite's capstan (heavy rope over a cylinder, mu = 0.3, its experiment's n = 100
+    and 2 s) at a fraction of the overhang the heavy-rope capstan equation holds: below
+    it the light end rises < 1 mm (the issue's bar; measured 0 at 0.8, 0.34-0.39 mm at
+    0.95), beyond it the rope slides off (> 0.1 m; measured 0.21 m). With pyramidal cones
+    the adapter's rope rose 1.84 mm at 0.8 and slid off at 0.95 (0.21 m): the pyramid's
+    pair across the slide took normal force its friction could not use, so the anchors'
+    springs had to stretch ~1.6 mm to carry the load."""
+    from cosseratbench.experiments.capstan import build, slide
+
+    scenario = build(overhang, 0.3)
+    trajectory = adapter.DerodsSolver().run(scenario, n_elements=100, n_frames=101)
+    moved = slide(scenario, trajectory)
+    assert (moved < 1e-3) if holds else (moved > 0.1), f"slide {moved * 1e3:.3f} mm"

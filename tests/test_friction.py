@@ -37,12 +37,14 @@ CREEP_LIMIT = 0.5e-3  # m/s
 
 
 def _rope_on_incline(young: float, tilt_deg: float = 10.0, friction: float = 0.3, dt: float = 1e-3,
-                     mode: str = "implicit", static_friction: bool = False) -> World:
-    """A 0.2 m rope (r = 1 mm, 20 edges) lying along the slope of a plane tilted by tilt_deg."""
+                     mode: str = "implicit", static_friction: bool = False, cone: str = "pyramidal") -> World:
+    """A 0.2 m rope (r = 1 mm, 20 edges) lying along the slope of a plane tilted by tilt_deg,
+    its contacts' friction cones MuJoCo's ``cone`` ("pyramidal" or "elliptic")."""
     tilt = math.radians(tilt_deg)
     normal = np.array([-math.sin(tilt), 0.0, math.cos(tilt)])
     along = np.array([math.cos(tilt), 0.0, math.sin(tilt)])
     spec = mujoco.MjSpec()
+    spec.option.cone = {"pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL, "elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC}[cone]
     plane = spec.worldbody.add_geom()
     plane.type = mujoco.mjtGeom.mjGEOM_PLANE
     plane.size = [0.0, 0.0, 1.0]
@@ -64,14 +66,15 @@ def _rope_on_incline(young: float, tilt_deg: float = 10.0, friction: float = 0.3
 SLIDE_TOL = 0.01
 
 
+@pytest.mark.parametrize("cone", ["pyramidal", "elliptic"])
 @pytest.mark.parametrize("mode", ["implicit", "alpha"])
 @pytest.mark.parametrize("tilt", [10.0, 15.0])
 @pytest.mark.parametrize("young", [3e5, 1e9])
-def test_a_rope_on_an_incline_below_its_friction_angle_holds(young, tilt, mode):
+def test_a_rope_on_an_incline_below_its_friction_angle_holds(young, tilt, mode, cone):
     """tan(10 deg) = 0.18 and tan(15 deg) = 0.27 < mu = 0.3, static friction on: after
     settling for 0.2 s, the rope's centre moves less than CREEP_LIMIT along the slope over
-    the next 0.5 s."""
-    world = _rope_on_incline(young, tilt_deg=tilt, mode=mode, static_friction=True)
+    the next 0.5 s, with pyramidal or elliptic cones."""
+    world = _rope_on_incline(young, tilt_deg=tilt, mode=mode, static_friction=True, cone=cone)
     world.step(200)
     before = world.positions().mean(axis=0)
     world.step(500)
@@ -91,15 +94,17 @@ def test_without_anchors_the_rope_creeps():
     assert creep > 10 * CREEP_LIMIT, f"creeps at {creep * 1e3:.2f} mm/s"
 
 
+@pytest.mark.parametrize("cone", ["pyramidal", "elliptic"])
 @pytest.mark.parametrize("static_friction", [False, True])
 @pytest.mark.parametrize("tilt", [20.0, 25.0])
 @pytest.mark.parametrize("young", [3e5, 1e9])
-def test_a_rope_beyond_its_friction_angle_slides_at_coulombs_rate(young, tilt, static_friction):
+def test_a_rope_beyond_its_friction_angle_slides_at_coulombs_rate(young, tilt, static_friction, cone):
     """tan(20 deg) = 0.36 > mu = 0.3: the rope slides down with g (sin theta - mu cos theta)
     (0.590 m/s^2 at 20 degrees, 1.479 at 25), its centre's speed measured over 10 ms at
-    0.2 s and at 0.69 s, within SLIDE_TOL; the same with static friction on or off."""
+    0.2 s and at 0.69 s, within SLIDE_TOL; the same with static friction on or off, and with
+    pyramidal or elliptic cones."""
     tilt_rad = math.radians(tilt)
-    world = _rope_on_incline(young, tilt_deg=tilt, static_friction=static_friction)
+    world = _rope_on_incline(young, tilt_deg=tilt, static_friction=static_friction, cone=cone)
     speeds = []
     for settle in (200, 480):
         world.step(settle)
@@ -109,4 +114,18 @@ def test_a_rope_beyond_its_friction_angle_slides_at_coulombs_rate(young, tilt, s
     accel = (speeds[1] - speeds[0]) / 0.49
     coulomb = 9.81 * (math.sin(tilt_rad) - 0.3 * math.cos(tilt_rad))
     assert accel == pytest.approx(coulomb, rel=SLIDE_TOL)
+
+
+@pytest.mark.parametrize("young", [3e5, 1e9])
+def test_with_elliptic_cones_a_rope_holds_near_its_friction_angle(young):
+    """tan(theta) = 0.95 mu (15.9 degrees): with elliptic cones (friction as Coulomb states
+    it) and static friction, the rope holds below CREEP_LIMIT; an anchor whose pull reaches
+    the cone is dragged to its limit rather than let go (derods/_numba/friction.py)."""
+    tilt = math.degrees(math.atan(0.95 * 0.3))
+    world = _rope_on_incline(young, tilt_deg=tilt, static_friction=True, cone="elliptic")
+    world.step(200)
+    before = world.positions().mean(axis=0)
+    world.step(500)
+    creep = np.linalg.norm(world.positions().mean(axis=0) - before) / 0.5
+    assert creep < CREEP_LIMIT, f"creeps at {creep * 1e3:.2f} mm/s"
 

@@ -18,6 +18,7 @@ import numba as nb
 import numpy as np
 
 from .banded import inverse_band, solve_columns
+from .cones import ConeContacts, Cones, cone_weights, share_patterns
 from .contact_blocks import partition
 from .contact_newton import newton, no_border
 from .dense import inverse_quadratic_rows
@@ -186,9 +187,12 @@ def row_weights(system, rows, y_border, jq, lu, piv, ratio, rod_of_dof):
 
 
 @nb.njit(cache=True)
-def contact_step(efc, supported_types, local_of_dof, dof_off, width, system, a0, a_out, force_out, max_iter, tol):
+def contact_step(efc, cone_contacts, supported_types, local_of_dof, dof_off, width, system, a0, a_out, force_out,
+                 max_iter, tol):
     """MuJoCo's constraint rows (``efc``, :class:`Efc`) on the rod dofs, re-solved in the
-    implicit metric (``system``, A factored: :class:`derods._numba.implicit.System`).
+    implicit metric (``system``, A factored: :class:`derods._numba.implicit.System`);
+    cone_contacts (:class:`derods._numba.cones.ConeContacts`): MuJoCo's contacts, for the
+    elliptic cones among the rows (empty if there are none).
 
     Rods are independent in A (its band is block diagonal by rod), so the rows are
     grouped into blocks of rods they bind together (one rod, or rods a rod-rod contact
@@ -252,8 +256,8 @@ def contact_step(efc, supported_types, local_of_dof, dof_off, width, system, a0,
         a_b = np.empty(m)
         f_b = np.empty(m)
         rod_b = np.searchsorted(dof_off, ids, side="right") - 1
-        solve_block(row_b, col_b, val_b, efc, block_rows, supported, local_b, width, block, rod_b, a0[ids], a_b,
-                    f_b, max_iter, tol)
+        solve_block(row_b, col_b, val_b, efc, cone_contacts, block_rows, supported, local_b, width, block, rod_b,
+                    a0[ids], a_b, f_b, max_iter, tol)
         for q in range(m):
             a_out[ids[q]] = a_b[q]
             force_out[ids[q]] = f_b[q]
@@ -261,17 +265,20 @@ def contact_step(efc, supported_types, local_of_dof, dof_off, width, system, a0,
 
 
 @nb.njit(cache=True)
-def solve_block(row, col, val, efc_data, efc_rows, supported, local_of_dof, width, system, rod_of_dof, a0, a_out,
-                force_out, max_iter, tol):
+def solve_block(row, col, val, efc_data, cone_contacts, efc_rows, supported, local_of_dof, width, system, rod_of_dof,
+                a0, a_out, force_out, max_iter, tol):
     """One block of rods' rows (k of them, with the nonzeros row, col, val; efc_rows (k,):
     their numbers among MuJoCo's rows ``efc_data``, :class:`Efc`; supported (nefc,): which of
     those derods solves) re-solved in the implicit metric (``system``, the block's A,
     factored: :class:`derods._numba.implicit.System`; rod_of_dof (n,): each dof's rod).
 
     1. Split the rows (:func:`split_rows`): derods solves the rows that touch only rod
-       dofs and are of a supported type; the others keep MuJoCo's force (ext).
+       dofs and are of a supported type; the others keep MuJoCo's force (ext). An
+       elliptic contact's rows (cone_contacts: :class:`derods._numba.cones.ConeContacts`)
+       are split as one, and solved as its cone (:mod:`derods._numba.cones`).
     2. Rescale the rows' weights D = 1 / R to the implicit metric, keeping MuJoCo's
-       impedance: R = (R / diagA)_MuJoCo * diag(J A^-1 J^T).
+       impedance: R = (R / diagA)_MuJoCo * diag(J A^-1 J^T); a cone's frictional rows
+       take MuJoCo's coupling to its normal row's.
     3. From a0 + A^-1 ext, minimize MuJoCo's primal problem by Newton's method.
     Writes a_out (m,) [m/s^2] and force_out (m,) [N] (ext + J^T lam) on the block's dofs,
     and each solved row's force into ``efc_data.force`` (MuJoCo's efc_force, which
@@ -279,7 +286,8 @@ def solve_block(row, col, val, efc_data, efc_rows, supported, local_of_dof, widt
     """
     n = len(a0)
     efc_aref, efc_r, efc_diag_a = efc_data.aref[efc_rows], efc_data.r[efc_rows], efc_data.diag_a[efc_rows]
-    efc, kb, col0, jw, far, ext = split_rows(row, col, val, local_of_dof, supported[efc_rows],
+    group = cone_groups(efc_rows, efc_data.type, cone_contacts)
+    efc, kb, col0, jw, far, ext = split_rows(row, col, val, local_of_dof, group, supported[efc_rows],
                                              efc_data.force[efc_rows], n, width)
     a = a0.copy()
     any_ext = False
@@ -293,7 +301,8 @@ def solve_block(row, col, val, efc_data, efc_rows, supported, local_of_dof, widt
         a += e
     force_out[:] = ext
     if len(efc):
-        fptr, fcol, fval = far
+        cones = block_cones(efc, efc_rows, efc_data.type, group, cone_contacts)
+        fptr, fcol, fval = share_patterns(far[0], far[1], far[2], kb, cones) if len(cones.dim) else far
         rows = Rows(col0, jw, fptr, fcol, fval)
         aref = np.empty(len(efc))
         r_over_diag = np.empty(len(efc))
@@ -302,8 +311,68 @@ def solve_block(row, col, val, efc_data, efc_rows, supported, local_of_dof, widt
             r_over_diag[i] = efc_r[efc[i]] / efc_diag_a[efc[i]]
         d = row_weights(system, rows, np.zeros((n, 0)), np.zeros((len(efc), 0)), np.zeros((0, 0)),
                         np.zeros(0, dtype=np.int64), r_over_diag, rod_of_dof)
-        a, _, lam, _ = newton(system, a, rows, aref, d, no_border(n, len(efc)), max_iter, tol)
+        cone_weights(d, cones)
+        a, _, lam, _ = newton(system, a, rows, aref, d, no_border(n, len(efc)), cones, max_iter, tol)
         force_out += transpose_apply_all(rows, lam, n)
         for i in range(len(efc)):  # derods' row forces, where MuJoCo's readers look for them
             efc_data.force[efc_rows[efc[i]]] = lam[i]
     a_out[:] = a
+
+
+@nb.njit(cache=True)
+def cone_groups(efc_rows, efc_type, cone_contacts):
+    """Each of a block's rows' group (:func:`derods._numba.contact_rows.split_bordered_rows`):
+    an elliptic contact's rows (efc_rows (k,): their numbers among MuJoCo's rows, each
+    contact's consecutive) the block number of its first, every other row its own; empty
+    if there is no elliptic contact."""
+    k = len(efc_rows)
+    if len(cone_contacts.adr) == 0:
+        return np.zeros(0, dtype=np.int64)
+    group = np.arange(k)
+    for b in range(k):
+        e = efc_rows[b]
+        if efc_type[e] == cone_contacts.elliptic:
+            first = cone_contacts.adr[cone_contacts.efc_id[e]]
+            group[b] = b - (e - first)
+    return group
+
+
+@nb.njit(cache=True)
+def block_cones(efc, efc_rows, efc_type, group, cone_contacts):
+    """The elliptic cones among a block's solved rows (:class:`derods._numba.cones.Cones`,
+    rows in the solve's order): efc (k,), the solved rows' block numbers; efc_rows,
+    efc_type, group: as :func:`cone_groups`."""
+    if len(group) == 0:
+        return Cones(np.zeros((0, 6), dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros((0, 5)))
+    at = np.full(len(group), -1, dtype=np.int64)
+    for i in range(len(efc)):
+        at[efc[i]] = i
+    nc = 0
+    for i in range(len(efc)):
+        b = efc[i]
+        if group[b] == b and _is_cone(efc_rows[b], efc_type, cone_contacts):
+            nc += 1
+    rows = np.full((nc, 6), -1, dtype=np.int64)
+    dim = np.zeros(nc, dtype=np.int64)
+    mu = np.zeros(nc)
+    friction = np.zeros((nc, 5))
+    c = 0
+    for i in range(len(efc)):
+        b = efc[i]
+        if not (group[b] == b and _is_cone(efc_rows[b], efc_type, cone_contacts)):
+            continue
+        con = cone_contacts.efc_id[efc_rows[b]]
+        dim[c] = cone_contacts.dim[con]
+        mu[c] = cone_contacts.mu[con]
+        friction[c] = cone_contacts.friction[con]
+        for j in range(dim[c]):
+            rows[c, j] = at[b + j]
+        c += 1
+    return Cones(rows, dim, mu, friction)
+
+
+@nb.njit(cache=True)
+def _is_cone(e, efc_type, cone_contacts):
+    """Whether MuJoCo's row e is the first of an elliptic contact."""
+    return efc_type[e] == cone_contacts.elliptic and cone_contacts.adr[cone_contacts.efc_id[e]] == e
+

@@ -16,7 +16,8 @@ import numpy as np
 
 from .banded import cholesky_into, solve_columns, solve_into
 from .dense import spd_factor as _spd_factor, spd_solve_factored as _spd_solve_factored
-from .contact_rows import FAR_DENSE_MAX, apply_all, exact_line_search, far_columns, rows_band, transpose_apply_all
+from .contact_rows import FAR_DENSE_MAX, Rows, apply_all, exact_line_search, far_columns, rows_band, transpose_apply_all
+from .cones import cone_forces, cone_line_search, virtual_jar, virtual_rows, write_virtual
 from .contact_cg import cg_direction
 from .implicit import k_matvec_into, twist_spans, twist_update_columns
 
@@ -32,7 +33,7 @@ def no_border(n, k):
 
 
 @nb.njit(cache=True)
-def newton(system, a0, rows, aref, d, border, max_iter, tol):
+def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
     """Minimize 1/2 (a - a0)^T H (a - a0) + sum_i 1/2 d_i min(J_i a - aref_i, 0)^2 by
     Newton's method with an exact line search. Returns (a, a_q, lam, iterations).
 
@@ -44,10 +45,17 @@ def newton(system, a0, rows, aref, d, border, max_iter, tol):
     banded rows' active set changes; the active far rows enter as a Woodbury update of a
     small dense system, and the border by its Schur complement on B (m more solves).
     rows: the rows J (:class:`derods._numba.contact_rows.Rows`); aref (k,) their reference
-    accelerations, d (k,) their weights."""
+    accelerations, d (k,) their weights; cones: the elliptic friction cones among them
+    (:class:`derods._numba.cones.Cones`, their rows' cost MuJoCo's elliptic one instead;
+    none with a border), which enter the linear algebra as virtual rows
+    (:func:`derods._numba.cones.virtual_rows`)."""
     g, tw_lo, tw_hi, mass, a_band = system.g, system.tw_lo, system.tw_hi, system.mass, system.a_band
     s, m_coef = system.weights[1], system.weights[0]
-    col0, jw, fptr, fcol, fval = rows
+    nc = len(cones.dim)
+    # The rows the Hessian and gradient see: the cones' virtual rows in place of theirs.
+    vrows = Rows(rows.col0, rows.jw.copy() if nc else rows.jw, rows.fptr, rows.fcol,
+                 rows.fval.copy() if nc else rows.fval)
+    col0, jw, fptr, fcol, fval = vrows
     n = len(a0)
     kb = len(col0)
     kf = len(fptr) - 1
@@ -55,6 +63,12 @@ def newton(system, a0, rows, aref, d, border, max_iter, tol):
     n_tw = len(tw_lo)
     hfq, hqq, jq = border.h_fq, border.h_qq, border.j_q
     m = hqq.shape[0]
+    in_cone = np.zeros(k, dtype=np.bool_)
+    for c in range(nc):
+        for j in range(cones.dim[c]):
+            in_cone[cones.rows[c, j]] = True
+    basis = np.zeros((nc, 6, 6))
+    wv = np.zeros((nc, 6))
     a = a0.copy()
     aq = border.a0.copy()
     am = np.zeros(n)  # H (a - a0), updated along the steps instead of recomputed
@@ -87,7 +101,7 @@ def newton(system, a0, rows, aref, d, border, max_iter, tol):
     if iterative:
         far_cols, far_first = zf, n
     else:
-        far_cols, far_first = far_columns(rows, n)
+        far_cols, far_first = far_columns(vrows, n)
     kd = np.empty(n)
     ad = np.empty(n)
     adq = np.empty(m)
@@ -101,7 +115,14 @@ def newton(system, a0, rows, aref, d, border, max_iter, tol):
         for i in range(k):
             w[i] = d[i] if jar[i] < 0 else 0.0
             wjar[i] = w[i] * jar[i]
-        grad = transpose_apply_all(rows, wjar, n)
+        cones_moved = nc > 0 and virtual_rows(cones, jar, d, basis, wv)
+        if nc:
+            virtual_jar(cones, basis, wv, jar, w, wjar)
+        if cones_moved:
+            write_virtual(rows, vrows, kb, cones, basis)
+            if not iterative:
+                far_cols, far_first = far_columns(vrows, n)
+        grad = transpose_apply_all(vrows, wjar, n)
         gmax = 0.0
         for j in range(n):
             grad[j] += am[j]
@@ -115,7 +136,7 @@ def newton(system, a0, rows, aref, d, border, max_iter, tol):
             gmax = max(gmax, abs(acc))
         if gmax <= tol * scale:
             break
-        same = it > 1  # B is factored in the first iteration, then when its rows change
+        same = it > 1 and not cones_moved  # B is factored first, then when its rows change
         for i in range(kb):
             if w[i] != w_factored[i]:
                 same = False
@@ -148,7 +169,7 @@ def newton(system, a0, rows, aref, d, border, max_iter, tol):
         for j in range(n):
             delta[j] = -y[j, 0]
         if n_act and iterative:
-            cg_direction(system, rows, w, lt, ztw, zspan, grad, delta)
+            cg_direction(system, vrows, w, lt, ztw, zspan, grad, delta)
         elif n_act:
             if not zf_ready:
                 zf[:] = far_cols
@@ -180,7 +201,7 @@ def newton(system, a0, rows, aref, d, border, max_iter, tol):
         if m:
             # The border by its Schur complement: C = H_fq + J_f^T W J_q, E = H_qq + J_q^T W J_q,
             # Z = (B + far)^-1 C, S = E - C^T Z; S dq = -g_q - C^T delta, delta -= Z dq.
-            cw, ew = _border_blocks(rows, hfq, hqq, jq, w, n)
+            cw, ew = _border_blocks(vrows, hfq, hqq, jq, w, n)
             zc_ = cw.copy()
             solve_columns(lt, zc_, 0, n, 0)
             twist_update_columns(system, ztw, zspan, zc_)
@@ -225,7 +246,10 @@ def newton(system, a0, rows, aref, d, border, max_iter, tol):
         for j in range(n):
             d_a += delta[j] * ad[j]
             d_g += delta[j] * am[j]
-        t = exact_line_search(jar, jd, d, d_a, d_g)
+        if nc:
+            t = cone_line_search(jar, jd, d, in_cone, cones, d_a, d_g)
+        else:
+            t = exact_line_search(jar, jd, d, d_a, d_g)
         smax = 0.0
         amax = 0.0
         for j in range(n):
@@ -250,6 +274,9 @@ def newton(system, a0, rows, aref, d, border, max_iter, tol):
         r = jar[i] - aref[i]
         if r < 0:
             lam[i] = -d[i] * r
+        jar[i] = r
+    if nc:
+        cone_forces(cones, jar, d, lam)
     return a, aq, lam, it
 
 

@@ -146,10 +146,11 @@ def sparse_triplets(rownnz, rowadr, colind, values):
 
 
 @nb.njit(cache=True)
-def split_rows(row, col, val, local_of_dof, supported, force, n, width):
+def split_rows(row, col, val, local_of_dof, group, supported, force, n, width):
     """Sort constraint rows that touch rod dofs (step 1 of :func:`derods._numba.contact.contact_step`).
 
     row, col, val: the nonzeros of MuJoCo's efc_J; local_of_dof (nv,): local rod dof or -1;
+    group (nefc,) or empty: rows split as one (:func:`split_bordered_rows`);
     supported (nefc,): rows derods can solve; force (nefc,): MuJoCo's row forces; n: local
     dofs; width: window of a banded row. A row is derods' if it touches only rod dofs and is
     supported; its force is MuJoCo's otherwise (returned as ext on the local dofs).
@@ -157,15 +158,18 @@ def split_rows(row, col, val, local_of_dof, supported, force, n, width):
     jw (kb, width); far: the far rows as CSR (fptr, fcol, fval); ext (n,)).
     """
     no_border = np.full(len(local_of_dof), -1, dtype=np.int64)
-    efc, kb, col0, jw, far, _, ext, _ = split_bordered_rows(row, col, val, local_of_dof, no_border, supported, force,
-                                                            n, 0, width)
+    efc, kb, col0, jw, far, _, ext, _ = split_bordered_rows(row, col, val, local_of_dof, no_border, group, supported,
+                                                            force, n, 0, width)
     return efc, kb, col0, jw, far, ext
 
 
 @nb.njit(cache=True)
-def split_bordered_rows(row, col, val, local_of_dof, border_of_dof, supported, force, n, m, width):
+def split_bordered_rows(row, col, val, local_of_dof, border_of_dof, group, supported, force, n, m, width):
     """:func:`split_rows` over n local dofs bordered by m more (border_of_dof (nv,): each
     MuJoCo dof's place among them, -1 elsewhere; see :class:`derods._numba.contact_newton.Border`).
+    group (nefc,) or empty: each row's group, the number of its first row (an elliptic
+    cone's rows: :mod:`derods._numba.cones`); a group's rows are split alike, banded ones
+    on one window.
 
     A row is derods' if it touches only local and border dofs (at least one) and is
     supported; a row that touches border dofs only is banded with an empty window.
@@ -190,6 +194,16 @@ def split_bordered_rows(row, col, val, local_of_dof, border_of_dof, supported, f
             touches[r] = True
         else:
             elsewhere[r] = True
+    for r in range(len(group)):  # a group's rows as one: what any of them touches
+        g = group[r]
+        if g != r:
+            touches[g] |= touches[r]
+            elsewhere[g] |= elsewhere[r]
+            lo[g] = min(lo[g], lo[r])
+            hi[g] = max(hi[g], hi[r])
+    for r in range(len(group)):
+        g = group[r]
+        touches[r], elsewhere[r], lo[r], hi[r] = touches[g], elsewhere[g], lo[g], hi[g]
     mine = touches & ~elsewhere & supported
     ext = np.zeros(n)
     ext_q = np.zeros(m)

@@ -60,7 +60,8 @@ def bordered_rows(efc, supported_types, own, local_of_dof, border_of_dof, n, m, 
             supported[r] = False
             force[r] = 0.0
     solved, kb, col0, jw, far, jq, ext, ext_q = split_bordered_rows(row, col, val, local_of_dof, border_of_dof,
-                                                                   supported, force, n, m, width)
+                                                                   np.zeros(0, dtype=np.int64), supported, force,
+                                                                   n, m, width)
     fptr, fcol, fval = far
     aref = np.empty(len(solved))
     ratio = np.empty(len(solved))

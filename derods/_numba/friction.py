@@ -1,6 +1,6 @@
 """Compiled mirror of :mod:`derods.sim.friction`: the anchors of the rods' sticking
 contacts, carried from step to step, and the tangential slip they add to MuJoCo's
-pyramidal rows."""
+pyramidal rows, or to an elliptic contact's frictional rows."""
 
 from __future__ import annotations
 
@@ -25,6 +25,15 @@ class FlexContacts(NamedTuple):
     dim: np.ndarray
     friction: np.ndarray
     efc_address: np.ndarray
+
+
+class Kinds(NamedTuple):
+    """The contact rows anchors act on: MuJoCo's pyramidal and elliptic constraint types,
+    and the model's impratio (an elliptic cone's frictional rows' weights over its normal's)."""
+
+    pyramidal: int
+    elliptic: int
+    impratio: float
 
 
 class Tables(NamedTuple):
@@ -134,15 +143,18 @@ def _point(xpos, xmat, body, weight, local, q, s, out):
 
 
 @nb.njit(cache=True)
-def anchor(con, tables, last, efc_type, efc_kbip, efc_aref, xpos, xmat, pyramidal, max_slip, min_age):
+def anchor(con, tables, last, efc_type, efc_kbip, efc_aref, xpos, xmat, kinds, max_slip, min_age):
     """This step's anchors (:class:`Anchors`, returned) from the last step's ``last``: every
-    pyramidal contact of a rod (a flex side, dim >= 3) keeps its anchor if it was there
+    pyramidal or elliptic contact of a rod (a flex side, dim >= 3) keeps its anchor if it was there
     (same two sides) and slipped less than ``max_slip`` [m] since the last step (else it
     slides, and is anchored again where it is, as a new one is); once it has been there
     ``min_age`` steps (until then it is anchored again where it is every step), its
     friction pairs' reference accelerations (``efc_aref``, in place) get the slip since the
     anchor: for pair j (rows J_n +- mu_j J_tj), aref -= +-K imp mu_j (s . t_j), s the side 1
-    point's motion relative to the side 0 point's (K, imp from ``efc_kbip``)."""
+    point's motion relative to the side 0 point's (K, imp from ``efc_kbip``); an elliptic
+    contact's frictional row j, aref -= K imp (s . t_j) / impratio, a spring as stiff as its
+    normal row's (its weight is the normal's times mu_j^2 / mu^2, mu^2 = mu_1^2 / impratio).
+    kinds: (MuJoCo's pyramidal and elliptic contact types, impratio)."""
     n = con.count
     geom, flex, elem, vert, pos = con.geom, con.flex, con.elem, con.vert, con.pos
     n_geom, n_elem, elem_adr, vert_adr = tables.n_geom, tables.n_elem, tables.elem_adr, tables.vert_adr
@@ -152,7 +164,7 @@ def anchor(con, tables, last, efc_type, efc_kbip, efc_aref, xpos, xmat, pyramida
     k = 0
     for c in range(n):
         adr = con.efc_address[c]
-        if con.dim[c] < 3 or adr < 0 or efc_type[adr] != pyramidal:
+        if con.dim[c] < 3 or adr < 0 or (efc_type[adr] != kinds.pyramidal and efc_type[adr] != kinds.elliptic):
             continue
         if flex[c, 0] < 0 and flex[c, 1] < 0:
             continue
@@ -217,6 +229,9 @@ def anchor(con, tables, last, efc_type, efc_kbip, efc_aref, xpos, xmat, pyramida
             s_j = 0.0
             for i in range(3):
                 s_j += slip[q, i] * frame[c, 3 * j + i]
+            if efc_type[adr] == kinds.elliptic:
+                efc_aref[adr + j] -= kimp * s_j / kinds.impratio
+                continue
             shift = kimp * friction[c, j - 1] * s_j
             efc_aref[adr + 2 * (j - 1)] -= shift
             efc_aref[adr + 2 * (j - 1) + 1] += shift
@@ -224,11 +239,13 @@ def anchor(con, tables, last, efc_type, efc_kbip, efc_aref, xpos, xmat, pyramida
 
 
 @nb.njit(cache=True)
-def reanchor_slipping(anchors, dim, efc_address, efc_force, xpos, xmat, slip_tol):
+def reanchor_slipping(anchors, con, efc_type, efc_force, efc_pos, xpos, xmat, kinds, slip_tol):
     """The anchors (a new :class:`Anchors`) with the contacts that slip anchored again where
-    they are: those whose solved force (``efc_force``) lies on the pyramid's boundary, all
-    of it in one row of each pair (sum_j |f+ - f-| >= (1 - slip_tol) sum f). dim,
-    efc_address: MuJoCo's per contact."""
+    they are: those whose solved force (``efc_force``) lies on the cone's boundary: a
+    pyramid's, all of it in one row of each pair (sum_j |f+ - f-| >= (1 - slip_tol) sum f);
+    an elliptic cone's, |(f_j / mu_j)_j| >= (1 - slip_tol) f_n, whose anchor is instead
+    moved to where its spring pulls with the cone's limit (efc_pos: the rows' penetration
+    [m]). con: MuJoCo's contacts (:class:`FlexContacts`); kinds: as :func:`anchor`'s."""
     k = len(anchors.keys)
     start = anchors.start.copy()
     slip = anchors.slip.copy()
@@ -237,18 +254,42 @@ def reanchor_slipping(anchors, dim, efc_address, efc_force, xpos, xmat, slip_tol
     p = np.empty(3)
     for q in range(k):
         c = contact[q]
-        adr = efc_address[c]
+        adr = con.efc_address[c]
         total, spent = 0.0, 0.0
-        for j in range(1, dim[c]):
-            plus, minus = efc_force[adr + 2 * (j - 1)], efc_force[adr + 2 * (j - 1) + 1]
-            total += plus + minus
-            if j <= 2:  # the sliding pairs; torsional and rolling pairs only carry normal force here
-                spent += abs(plus - minus)
-        if total > 0.0 and spent >= (1.0 - slip_tol) * total:
-            for s in range(2):
-                _point(xpos, xmat, body, weight, local, q, s, p)
-                for i in range(3):
-                    start[q, s, i] = p[i]
-                    slip[q, i] = 0.0
-            age[q] = 0
+        if efc_type[adr] == kinds.elliptic:
+            total = efc_force[adr]
+            for j in range(1, con.dim[c]):
+                spent += (efc_force[adr + j] / con.friction[c, j - 1]) ** 2
+            spent = np.sqrt(spent)
+        else:
+            for j in range(1, con.dim[c]):
+                plus, minus = efc_force[adr + 2 * (j - 1)], efc_force[adr + 2 * (j - 1) + 1]
+                total += plus + minus
+                if j <= 2:  # the sliding pairs; torsional and rolling pairs only carry normal force here
+                    spent += abs(plus - minus)
+        if not (total > 0.0 and spent >= (1.0 - slip_tol) * total):
+            continue
+        if efc_type[adr] == kinds.elliptic and efc_pos[adr] < 0.0:
+            # Dragged along, not let go: the anchor follows to where its spring pulls with
+            # the cone's limit mu_1 f_n, which it reaches at a tangential slip of mu_1 times
+            # the penetration (the spring as stiff as the normal row's, see anchor), and the
+            # contact keeps its age: it holds again the step the pull falls inside the cone.
+            st2 = 0.0
+            sn = 0.0
+            for i in range(3):
+                sn += slip[q, i] * con.frame[c, i]
+            for i in range(3):
+                st2 += (slip[q, i] - sn * con.frame[c, i]) ** 2
+            limit = con.friction[c, 0] * -efc_pos[adr]
+            rho = min(1.0, limit / np.sqrt(st2)) if st2 > 0.0 else 1.0
+            for i in range(3):
+                start[q, 1, i] += (1.0 - rho) * slip[q, i]
+                slip[q, i] *= rho
+            continue
+        for s in range(2):
+            _point(xpos, xmat, body, weight, local, q, s, p)
+            for i in range(3):
+                start[q, s, i] = p[i]
+                slip[q, i] = 0.0
+        age[q] = 0
     return Anchors(anchors.keys, contact, body, weight, local, start, slip, age)

@@ -20,9 +20,12 @@ Numerics, the same for every experiment (see :meth:`DerodsSolver.settings`):
 - stretch: the rod's own axial stiffness E A (the catenary sags deeper by it);
   derods' rods do not shear;
 - contact: MuJoCo's detection, derods' implicit contact solve; Coulomb friction, the
-  larger coefficient of the two things touching (MuJoCo's rule, the suite's too), with
-  static friction on (``ContactParams(static_friction=True)``: resting contacts anchored,
-  so a rope below its friction limit holds instead of creeping).
+  larger coefficient of the two things touching (MuJoCo's rule, the suite's too), in
+  elliptic cones (Coulomb's law as the scenarios state it: a pyramid's soft rows spend
+  normal force across the slide, and a rope over a capstan at 0.95 of its holding
+  overhang slid off), with static friction on (``ContactParams(static_friction=True)``:
+  resting contacts anchored, so a rope below its friction limit holds instead of
+  creeping).
 
 Discretization. A discrete clamp holds a whole edge and acts where that edge's
 material frame sits, at its middle (:func:`derods.shapes.cantilever`); so a clamped
@@ -59,7 +62,7 @@ MODE = "alpha"
 #: The MuJoCo integrator of the scene (derods' implicit steps need implicitfast or Euler).
 INTEGRATOR = "implicitfast"
 #: MuJoCo's friction cone.
-CONE = mujoco.mjtCone.mjCONE_PYRAMIDAL
+CONE = mujoco.mjtCone.mjCONE_ELLIPTIC
 #: Contact: MuJoCo's soft-constraint time constant in time steps, and its impedance.
 CONTACT_TIME_STEPS = 5.0
 CONTACT_SOLIMP = (0.9, 0.95, 0.001, 0.5, 2.0)
@@ -219,7 +222,7 @@ class DerodsSolver:
             "mass_damping": self._damping(scenario),
             "stretch_stiffness": "E A",
             "clamp": "edge held, its middle at the end",
-            "friction_cone": "pyramidal",
+            "friction_cone": "elliptic",
             "contact_solref": list(contact.solref),
             "contact_solimp": list(contact.solimp),
             "contact_margin": contact.margin,

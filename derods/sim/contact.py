@@ -49,6 +49,7 @@ import numpy as np
 from .._numba import contact as _k
 from .._numba.banded import cholesky_into
 from .._numba.calls import Bound
+from .._numba.cones import ConeContacts, Cones
 from .._numba.contact_newton import Border, newton
 from .._numba.contact_reference import Contacts, correct_aref
 from .._numba.contact_rows import efc_triplets
@@ -63,9 +64,17 @@ from .trees import TreeDynamics, tree_dofs
 
 #: Width of a row's dof window that keeps the Hessian banded.
 WINDOW = XX_BANDWIDTH + 1
-#: The constraint types derods re-solves (MuJoCo's pyramidal and frictionless contacts).
-SUPPORTED = np.array([int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL),
-                      int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS)])
+_PYRAMIDAL = int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL)
+_FRICTIONLESS = int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS)
+_ELLIPTIC = int(mujoco.mjtConstraint.mjCNSTR_CONTACT_ELLIPTIC)
+#: The constraint types derods re-solves: MuJoCo's pyramidal, frictionless and elliptic
+#: contacts (an elliptic one as its cone, :mod:`derods._numba.cones`).
+SUPPORTED = np.array([_PYRAMIDAL, _FRICTIONLESS, _ELLIPTIC])
+#: Those a solve with a border takes (rods held by bodies with dofs, a large tree touching
+#: a rod): elliptic rows keep MuJoCo's force there.
+SUPPORTED_BORDERED = np.array([_PYRAMIDAL, _FRICTIONLESS])
+#: No elliptic cone in a solve.
+NO_CONES = Cones(np.zeros((0, 6), dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros((0, 5)))
 #: Newton's method: iteration cap, and the tolerance on the gradient relative to the
 #: problem's force scale.
 MAX_ITER = 30
@@ -114,6 +123,10 @@ class ContactStep:
         self.bodies = bool(np.any(self._dof_tree >= 0))
         self._dynamics = TreeDynamics(model) if self.bodies else None
         self._contact_step = Bound(_k.contact_step)
+        #: Elliptic cones: MuJoCo's contacts are read for them each step (else never).
+        self.elliptic = model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
+        none = np.zeros(0, dtype=np.int32)
+        self._no_cone_contacts = ConeContacts(_ELLIPTIC, none, none, none, np.zeros(0), np.zeros((0, 5)))
         #: The body trees (MuJoCo tree ids) whose dofs joined the last step's solve.
         self.joined_trees = np.zeros(0, dtype=np.int64)
 
@@ -147,8 +160,19 @@ class ContactStep:
         # The rows are views of MuJoCo's data made afresh each step: flat arrays of its own
         # (not views into an array of structs, as data.contact's are, whose layout changes
         # with their count), so their types are the data's (and so are those of rows made
-        # from them, tree_rows.solvable_rows).
-        return self._contact_step.keyed((data,) + rest, (self.rows(data) if efc is None else efc,) + rest)
+        # from them, tree_rows.solvable_rows); the contacts' for cones, contiguous copies.
+        cones = self.cone_contacts(data)
+        return self._contact_step.keyed((data, data if self.elliptic else cones) + rest,
+                                        (self.rows(data) if efc is None else efc, cones) + rest)
+
+    def cone_contacts(self, data: mujoco.MjData) -> ConeContacts:
+        """MuJoCo's contacts as the stage reads them for elliptic cones (none without)."""
+        if not self.elliptic or not data.ncon:
+            return self._no_cone_contacts
+        con = data.contact
+        return ConeContacts(_ELLIPTIC, data.efc_id, np.ascontiguousarray(con.efc_address),
+                            np.ascontiguousarray(con.dim), np.ascontiguousarray(con.mu),
+                            np.ascontiguousarray(con.friction))
 
     def _tree_rows(self, data, trees) -> tuple[_k.Efc, SolvableRows | None]:
         """MuJoCo's rows with the equalities and joint limits among the joined ``trees``
@@ -198,7 +222,7 @@ class ContactStep:
         border_of_dof[dofs] = np.arange(k)
         metric = self._dynamics.metric(m, data, dofs)
         efc, solvable = self._tree_rows(data, np.concatenate([small, large]))
-        rows = bordered_rows(efc, SUPPORTED, np.zeros(0, dtype=np.bool_), ext.local_of_dof,
+        rows = bordered_rows(efc, SUPPORTED_BORDERED, np.zeros(0, dtype=np.bool_), ext.local_of_dof,
                              border_of_dof, ext.n, k, WINDOW)
         start = ext.a0.copy()
         if rows.ext.any():
@@ -215,7 +239,7 @@ class ContactStep:
             weights = _k.row_weights(ext.system, rows.rows, no_coupling, rows.jq, lu, piv, rows.ratio,
                                      np.zeros(0, dtype=np.int64))
             a, a_q, lam, _ = newton(ext.system, start, rows.rows, rows.aref, weights,
-                                    Border(no_coupling, metric, rows.jq, a_q), MAX_ITER, TOL)
+                                    Border(no_coupling, metric, rows.jq, a_q), NO_CONES, MAX_ITER, TOL)
         row_forces_into(rows, lam, self.force, efc.force)
         if solvable is not None:
             solvable.finish(data)

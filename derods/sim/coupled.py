@@ -49,7 +49,7 @@ from .._numba.coupled import (BorderedRows, bordered_rows, force_into, holder_st
                               row_forces_into, start_into)
 from .._numba.dense import lu_solve, spd_factor
 from .._numba.implicit import sm_solve_columns_into, sm_solve_into
-from .contact import MAX_ITER, SUPPORTED, TOL, WINDOW, ContactStep, WithTrees
+from .contact import MAX_ITER, NO_CONES, SUPPORTED_BORDERED, TOL, WINDOW, ContactStep, WithTrees
 from .holders import Holders
 from .layout import element_bodies
 
@@ -195,7 +195,7 @@ class CoupledStep:
                 return a.copy(), f_q.copy(), None  # (the buffers are the next solve's)
             a, aq, lam, _ = self._keyed(self._newton, plain, (ext_sys.system, d, a, h_fq, h_qq, f_q),
                                         ext_sys.system, a, rows.rows, rows.aref, weights,
-                                        Border(h_fq, h_qq, rows.jq, f_q), MAX_ITER, TOL)
+                                        Border(h_fq, h_qq, rows.jq, f_q), NO_CONES, MAX_ITER, TOL)
             return a, aq, lam
 
         if not hl.turning:  # held points only translate: no arcs
@@ -233,7 +233,7 @@ class CoupledStep:
     def _rows(self, d: mujoco.MjData, ext_sys: WithTrees, own: np.ndarray | None) -> BorderedRows:
         """MuJoCo's rows of this step split for the solve over the rods' dofs (and the
         touching trees', ext_sys) bordered by the holders' (:func:`bordered_rows`)."""
-        rest = (SUPPORTED, self._no_rows if own is None else own, ext_sys.local_of_dof, self.border_of_dof,
+        rest = (SUPPORTED_BORDERED, self._no_rows if own is None else own, ext_sys.local_of_dof, self.border_of_dof,
                 ext_sys.n, self.m, WINDOW)
         efc = self.contact.rows(d)
         if own is None and ext_sys.n == self.layout.n:  # the rest: the same objects every step

@@ -51,10 +51,9 @@ from functools import cached_property
 import mujoco
 import numpy as np
 
-from .._numba.friction import Anchors, FlexContacts, Tables, anchor, no_anchors, reanchor_slipping
+from .._numba.friction import Anchors, FlexContacts, Kinds, Tables, anchor, no_anchors, reanchor_slipping
 from .layout import element_bodies
 
-_PYRAMIDAL = int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL)
 #: A contact whose friction rows carry all but this share of its force slips.
 SLIP_TOL = 1e-6
 #: A contact whose sides moved apart faster than this [m/s] over the last step slides.
@@ -78,6 +77,8 @@ class StaticFriction:
         self.enabled = bool(np.any(model.flex_dim == 1)) if model.nflex else False
         self.state = no_anchors()
         self._contacts = None
+        self.kinds = Kinds(int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL),
+                           int(mujoco.mjtConstraint.mjCNSTR_CONTACT_ELLIPTIC), float(model.opt.impratio))
 
     @cached_property
     def tables(self) -> Tables:
@@ -104,7 +105,7 @@ class StaticFriction:
         contacts = FlexContacts(d.ncon, con.geom, con.flex, con.elem, con.vert, con.pos, con.frame, con.dim,
                                 con.friction, con.efc_address)
         self.state = anchor(contacts, self.tables, self.state, d.efc_type, d.efc_KBIP, d.efc_aref, d.xpos, d.xmat,
-                            _PYRAMIDAL, SLIDING_SPEED * self.model.opt.timestep, RESTING_STEPS)
+                            self.kinds, SLIDING_SPEED * self.model.opt.timestep, RESTING_STEPS)
         self._contacts = contacts  # the step's contacts, for slipped
 
     def slipped(self, data: mujoco.MjData) -> None:
@@ -117,4 +118,5 @@ class StaticFriction:
         if not len(st.keys):
             return
         con = self._contacts
-        self.state = reanchor_slipping(st, con.dim, con.efc_address, data.efc_force, data.xpos, data.xmat, SLIP_TOL)
+        self.state = reanchor_slipping(st, con, data.efc_type, data.efc_force, data.efc_pos, data.xpos, data.xmat,
+                                       self.kinds, SLIP_TOL)
