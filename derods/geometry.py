@@ -10,6 +10,9 @@ Conventions used throughout derods:
   closed rod (``n`` joints). Joint ``k`` sits between edges ``prev`` and
   ``next`` (:func:`joint_edge_index`) and its stencil is the three vertices
   ``(prev vertex, joint vertex, next vertex)`` (:func:`joint_vertex_index`).
+* A joint bends by Bergou's curvature binormal ``kb`` (|kb| = 2 tan(phi / 2)) or,
+  for rods with ``bending="angle"``, by the turning angle (:class:`TurningAngle`,
+  |kb_angle| = phi); :func:`curvature` gives the one a rod takes.
 * Every function accepts leading batch dimensions, so ``x`` of shape
   ``(n_rods, n_vertices, 3)`` evaluates many rods of equal size in one call.
 """

@@ -69,14 +69,16 @@ class Rod:
           for a turning angle phi at the joint; the paper's discretization.
         * "angle": the turning angle itself, kb_angle = phi kb / |kb|
           (:class:`derods.geometry.TurningAngle`), as MuJoCo's cable measures it. A rod
-          under a constant moment M then turns by exactly M h / alpha per joint, so a
+          under a constant moment M then turns by exactly M h / alpha per joint (h the
+          edge length), so a
           sampled arc of constant curvature is an equilibrium without discretization
           error (an end couple 2 pi alpha / L closes a clamped rod into a regular polygon
           exactly, where "tan" falls short by about phi^2 / 3), and the energy stays
           finite as a joint folds back (phi -> pi), where tan(phi / 2) has a pole.
 
-        Both converge to the same continuum rod as O(phi^2); pick "angle" to match MuJoCo's
-        cable or closed forms of constant curvature, "tan" to follow the paper.
+        They differ by O(phi^2) per joint and converge to the same continuum rod; pick
+        "angle" to match MuJoCo's cable or closed forms of constant curvature, "tan" (the
+        default, whose results are unchanged by this option) to follow the paper.
     """
 
     rest_x: np.ndarray
