@@ -27,6 +27,12 @@ Energies (l_k the vertex length of joint k, see :func:`derods.geometry.voronoi_l
 * twist: sum_k beta (m_k - mbar_k)^2 / l_k, m_k = theta^next - theta^prev +
   ref_twist_k (+ a seam offset on closed rods), beta = G J [N m^2].
 
+The bending terms take a measure of bending (``bending``, see
+:data:`derods.geometry.BENDING_MEASURES`): Bergou's kb, |kb| = 2 tan(phi / 2) (the
+default), or the turning angle kb_angle = phi kb / |kb| (:class:`derods.geometry.TurningAngle`),
+which enters every formula above in kb's place, its Jacobians and second derivatives too.
+The twist's reference twist keeps Bergou's kb: its gradient is a fact of parallel transport.
+
 Every term also offers a positive semi-definite Hessian (``psd=True``), its
 Gauss-Newton part (the squared Jacobian of the strain, plus the stretch term
 only while an edge is stretched), for implicit time stepping.
@@ -39,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import frames as _frames
-from .geometry import JointGeometry, edges, joint_pairs, norm
+from .geometry import JointGeometry, curvature, edges, joint_pairs, norm
 from .stencil import Hessian, add_optional, scatter_edge_x, scatter_joint_theta, scatter_joint_x
 
 
@@ -179,14 +185,15 @@ def stretch(cfg: Configuration, ks, rest_len: np.ndarray, order: int = 1,
 
 
 def bend_isotropic(cfg: Configuration, alpha, vlen: np.ndarray, order: int = 1,
-                   psd: bool = False) -> Derivatives:
+                   psd: bool = False, bending: str = "tan") -> Derivatives:
     """Isotropic bending energy of a naturally straight rod, sum_k alpha |kb_k|^2 / l_k.
 
     Needs no frames: with no rest curvature the material frame drops out.
     alpha: bending stiffness E I [N m^2], scalar or shape (..., n_joints).
     vlen: vertex lengths l_k [m], shape (..., n_joints).
+    bending: "tan" (kb, Bergou et al. 2008) or "angle" (|kb_angle| = phi, the turning angle).
     """
-    jg = cfg.joint
+    jg = curvature(cfg.joint, bending)
     kb = jg.kb
     c = alpha / vlen  # [N m]
     energy = np.sum(c * _dot(kb, kb), axis=-1)
@@ -206,7 +213,7 @@ def bend_isotropic(cfg: Configuration, alpha, vlen: np.ndarray, order: int = 1,
 
 def bend_material(cfg: Configuration, stiffness: np.ndarray, vlen: np.ndarray,
                   rest_curvature: np.ndarray | None = None, order: int = 1,
-                  psd: bool = False) -> Derivatives:
+                  psd: bool = False, bending: str = "tan") -> Derivatives:
     """Bending energy in material curvatures (anisotropic and/or naturally curved rods).
 
     E = sum_k 1/(2 l_k) sum_{s = prev, next} sum_{c = 1, 2}
@@ -217,10 +224,12 @@ def bend_material(cfg: Configuration, stiffness: np.ndarray, vlen: np.ndarray,
         (..., n_joints, 2, 2) (per joint and side; (n_rods, 1, 1, 2) for a batch).
         B1 weighs omega_1 = kb . m2, the bending about m1 (in the plane of t and m2).
     vlen: vertex lengths l_k [m], shape (..., n_joints).
-    rest_curvature: omegabar, shape (..., n_joints, 2, 2), or None for straight.
+    rest_curvature: omegabar, shape (..., n_joints, 2, 2), or None for straight (taken
+        with the same measure: :attr:`derods.Rod.rest_curvature` is).
+    bending: "tan" (kb, Bergou et al. 2008) or "angle" (|kb_angle| = phi, the turning angle).
     Requires ``cfg.u`` and ``cfg.theta``.
     """
-    jg = cfg.joint
+    jg = curvature(cfg.joint, bending)
     kb = jg.kb
     m1, m2 = cfg.material_frames()
     m1s = np.stack(joint_pairs(m1, cfg.closed), axis=-2)  # (..., nj, 2, 3)
@@ -257,7 +266,8 @@ def bend_material(cfg: Configuration, stiffness: np.ndarray, vlen: np.ndarray,
     if not psd:
         h_ab = h_ab + jg.kb_hessian_dot(w_g)
         # Transport of the material frame with its edge: d n / d e^s = -t^s n^T / |e^s|,
-        # and J^T t^s = -kb / |e^s| on the rows of e^s.
+        # and J^T t^s = -kb / |e^s| on the rows of e^s (kb . t^s = 0 at every shape, for
+        # either measure: the derivative of that identity).
         lens = np.stack([jg.la, jg.lb], axis=-1)  # (..., nj, 2)
         ws = np.einsum("...sc,...sci->...si", r, n)  # (..., nj, 2, 3)
         f = kb[..., None, :, None] * ws[..., :, None, :] / (lens**2)[..., :, None, None]

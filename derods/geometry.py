@@ -10,6 +10,9 @@ Conventions used throughout derods:
   closed rod (``n`` joints). Joint ``k`` sits between edges ``prev`` and
   ``next`` (:func:`joint_edge_index`) and its stencil is the three vertices
   ``(prev vertex, joint vertex, next vertex)`` (:func:`joint_vertex_index`).
+* A joint bends by Bergou's curvature binormal ``kb`` (|kb| = 2 tan(phi / 2)) or,
+  for rods with ``bending="angle"``, by the turning angle (:class:`TurningAngle`,
+  |kb_angle| = phi); :func:`curvature` gives the one a rod takes.
 * Every function accepts leading batch dimensions, so ``x`` of shape
   ``(n_rods, n_vertices, 3)`` evaluates many rods of equal size in one call.
 """
@@ -23,6 +26,18 @@ import numpy as np
 #: the floor keeps energies and forces finite for turning angles within about
 #: 1.4e-6 rad of pi, where the bending energy is already ~1e12 alpha / l.
 CHI_MIN = 1e-12
+
+#: The measures of bending a rod may take (:class:`derods.Rod`'s ``bending``): "tan",
+#: Bergou's curvature binormal kb, |kb| = 2 tan(phi / 2); "angle", the turning angle
+#: itself, kb_angle = phi kb / |kb| (:class:`TurningAngle`).
+BENDING_MEASURES = ("tan", "angle")
+#: Below this |kb| the turning angle's factors (:func:`turning_angle_factors`) are summed
+#: as their series in y = |kb|^2 / 4: their closed forms lose about eps / |kb|^4 (relative)
+#: to cancellation (measured against extended precision: at most 2e-14 from 0.5 up, where
+#: the series' first neglected term, summed to ANGLE_SERIES_TERMS, is below 1e-17).
+ANGLE_SERIES_MAX = 0.5
+#: Terms of those series after the constant (y <= 1/16 where they are used).
+ANGLE_SERIES_TERMS = 16
 
 
 def edges(x: np.ndarray, closed: bool) -> np.ndarray:
@@ -187,6 +202,113 @@ class JointGeometry:
             + (2.0 * phi / d**2) * (g_d[..., :, None] * g_d[..., None, :])
             - (phi / d) * h_d
         )
+
+
+def turning_angle_factors(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(g, g' / x, (g' / x)' / x) of g(x) = 2 atan(x / 2) / x, the factor that turns Bergou's
+    kb (|kb| = x = 2 tan(phi / 2)) into the turning angle's, kb_angle = g kb (|kb_angle| = phi).
+
+    x: |kb|, dimensionless, any shape (>= 0). With y = x^2 / 4 and G(y) = atan(sqrt y) / sqrt y
+    = sum_m (-y)^m / (2 m + 1): g = G, g' / x = G' / 2, (g' / x)' / x = G'' / 4, smooth at 0
+    (1, -1/6, 1/10); summed as series below :data:`ANGLE_SERIES_MAX`, in closed form above.
+    Each returned with the shape of x.
+    """
+    x = np.asarray(x, dtype=float)
+    y = 0.25 * x * x
+    small = x < ANGLE_SERIES_MAX
+    g_s, a_s, b_s = np.zeros_like(y), np.zeros_like(y), np.zeros_like(y)
+    for m in range(ANGLE_SERIES_TERMS, -1, -1):  # Horner, from the highest power of y
+        sign = -1.0 if m % 2 else 1.0
+        g_s = g_s * y + sign / (2 * m + 1)
+        if m >= 1:
+            a_s = a_s * y + sign * m / (2 * m + 1)
+        if m >= 2:
+            b_s = b_s * y + sign * m * (m - 1) / (2 * m + 1)
+    yc = np.where(small, 1.0, y)  # the closed forms where they are used (no 0 / 0 elsewhere)
+    root = np.sqrt(yc)
+    g_c = np.arctan(root) / root
+    c = 1.0 / (1.0 + yc)  # d phi / d x
+    a_c = (c - g_c) / (4.0 * yc)
+    b_c = (-0.5 * c * c - 3.0 * a_c) / (4.0 * yc)
+    return np.where(small, g_s, g_c), np.where(small, 0.5 * a_s, a_c), np.where(small, 0.25 * b_s, b_c)
+
+
+class TurningAngle:
+    """The turning angle as the curvature of each joint: kb_angle = phi kb / |kb|, |kb_angle| =
+    phi [rad], in place of Bergou's kb (|kb| = 2 tan(phi / 2)); its direction is kb's.
+
+    It has :class:`JointGeometry`'s interface for bending (``kb``, :meth:`jacobians`,
+    :meth:`jacobian_ab`, :meth:`kb_hessian_dot`, and the edges' ``la``, ``lb``, ``ta``,
+    ``tb``, ``chi``), so the bending energies take either. kb_angle = g(x) kb with x = |kb|,
+    g = 2 atan(x / 2) / x (:func:`turning_angle_factors`), and by the chain rule
+    d kb_angle / d kb = G = g I + (g' / x) kb kb^T. An arc of constant curvature kappa
+    sampled by edges of length h turns by exactly kappa h at every joint, so a rod under a
+    constant moment M turns by M h / alpha per joint (MuJoCo's cable measures bending so);
+    Bergou's tan(phi / 2) would need alpha phi (1 + phi^2 / 3) / h for it.
+    """
+
+    __slots__ = ("base", "la", "lb", "ta", "tb", "chi", "kb", "_g", "_a", "_b", "_ja", "_jb")
+
+    def __init__(self, jg: JointGeometry):
+        self.base = jg
+        self.la, self.lb, self.ta, self.tb, self.chi = jg.la, jg.lb, jg.ta, jg.tb, jg.chi
+        self._g, self._a, self._b = turning_angle_factors(norm(jg.kb))
+        self.kb = self._g[..., None] * jg.kb
+        self._ja = None
+        self._jb = None
+
+    @property
+    def turning_angle(self) -> np.ndarray:
+        """Turning angle phi [rad], in [0, pi], shape (..., n_joints)."""
+        return self.base.turning_angle
+
+    def _times_g(self, m: np.ndarray) -> np.ndarray:
+        """G m for G = d kb_angle / d kb = g I + a kb kb^T and m of shape (..., n_joints, 3, c)."""
+        kb = self.base.kb
+        kb_m = np.einsum("...k,...kc->...c", kb, m)
+        return self._g[..., None, None] * m + self._a[..., None, None] * kb[..., :, None] * kb_m[..., None, :]
+
+    def jacobians(self) -> tuple[np.ndarray, np.ndarray]:
+        """d kb_angle / d e_prev and d kb_angle / d e_next [1/m], each (..., n_joints, 3, 3): G times
+        :meth:`JointGeometry.jacobians`."""
+        if self._ja is None:
+            ja, jb = self.base.jacobians()
+            self._ja, self._jb = self._times_g(ja), self._times_g(jb)
+        return self._ja, self._jb
+
+    def jacobian_ab(self) -> np.ndarray:
+        """d kb_angle / d (e_prev, e_next), shape (..., n_joints, 3, 6)."""
+        ja, jb = self.jacobians()
+        return np.concatenate([ja, jb], axis=-1)
+
+    def kb_hessian_dot(self, w: np.ndarray) -> np.ndarray:
+        """sum_k w_k d^2 kb_angle_k / d(e_prev, e_next)^2 [1/m^2], shape (..., n_joints, 6, 6).
+
+        w: weights, shape (..., n_joints, 3). f = w . kb_angle = g(x) (w . kb) has, over kb,
+        the gradient G w and the Hessian H_f = a (w kb^T + kb w^T) + a (w . kb) I
+        + b (w . kb) kb kb^T (a = g' / x, b = a' / x), so the chain rule gives
+        J^T H_f J + sum_k (G w)_k d^2 kb_k (J = d kb / d(e_prev, e_next)).
+        """
+        kb = self.base.kb
+        a, b = self._a[..., None, None], self._b[..., None, None]
+        wk = np.einsum("...i,...i->...", w, kb)[..., None, None]
+        h_f = (a * (w[..., :, None] * kb[..., None, :] + kb[..., :, None] * w[..., None, :]) + a * wk * np.eye(3)
+               + b * wk * kb[..., :, None] * kb[..., None, :])
+        j = self.base.jacobian_ab()
+        gw = self._times_g(w[..., None])[..., 0]
+        return np.einsum("...ki,...kl,...lj->...ij", j, h_f, j) + self.base.kb_hessian_dot(gw)
+
+
+def curvature(jg: JointGeometry, bending: str = "tan"):
+    """The curvature a rod bends by at its joints: ``jg`` itself for Bergou's measure
+    ("tan"), its :class:`TurningAngle` for "angle" (:data:`BENDING_MEASURES`). The
+    reference twist keeps Bergou's kb either way: its gradient, kb / (2 |e|), is the
+    holonomy of parallel transport, not a measure of bending."""
+    if bending == "tan":
+        return jg
+    if bending == "angle":
+        return TurningAngle(jg)
+    raise ValueError(f"bending must be one of {BENDING_MEASURES}, got {bending!r}")
 
 
 def curvature_binormal(x: np.ndarray, closed: bool) -> np.ndarray:

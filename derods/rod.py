@@ -62,6 +62,23 @@ class Rod:
         False for a naturally straight rod that merely starts in the shape of
         ``rest_x`` (a straight rod closed into a ring, as in Michell's test):
         then ``rest_x`` sets only the rest edge lengths.
+    bending: how a joint's bending is measured, the same in every term it enters (bending
+        energy, forces, the implicit step's Hessian, the natural curvature of ``rest_x``):
+
+        * "tan" (default): Bergou et al. 2008's curvature binormal kb, |kb| = 2 tan(phi / 2)
+          for a turning angle phi at the joint; the paper's discretization.
+        * "angle": the turning angle itself, kb_angle = phi kb / |kb|
+          (:class:`derods.geometry.TurningAngle`), as MuJoCo's cable measures it. A rod
+          under a constant moment M then turns by exactly M h / alpha per joint (h the
+          edge length), so a
+          sampled arc of constant curvature is an equilibrium without discretization
+          error (an end couple 2 pi alpha / L closes a clamped rod into a regular polygon
+          exactly, where "tan" falls short by about phi^2 / 3), and the energy stays
+          finite as a joint folds back (phi -> pi), where tan(phi / 2) has a pole.
+
+        They differ by O(phi^2) per joint and converge to the same continuum rod; pick
+        "angle" to match MuJoCo's cable or closed forms of constant curvature, "tan" (the
+        default, whose results are unchanged by this option) to follow the paper.
     """
 
     rest_x: np.ndarray
@@ -72,6 +89,7 @@ class Rod:
     stretch_stiffness: float | None = None
     u0: np.ndarray | None = None
     natural_curvature: bool = True
+    bending: str = "tan"
     rest_len: np.ndarray = field(init=False, repr=False)
     vlen: np.ndarray = field(init=False, repr=False)
     rest_u: np.ndarray = field(init=False, repr=False)
@@ -94,7 +112,8 @@ class Rod:
         curvature = None
         if not straight:
             m1, m2 = cfg.material_frames()
-            curvature = frames.material_curvatures(cfg.joint.kb, m1, m2, self.closed)
+            kb = geometry.curvature(cfg.joint, self.bending).kb
+            curvature = frames.material_curvatures(kb, m1, m2, self.closed)
         terms = ["stretch"]
         frame_bend = (not straight) or (not self.material.isotropic)
         terms.append("bend_material" if frame_bend else "bend_isotropic")
@@ -197,10 +216,10 @@ class Rod:
             if name == "stretch":
                 d = energy.stretch(cfg, self.ks, self.rest_len, order, psd)
             elif name == "bend_isotropic":
-                d = energy.bend_isotropic(cfg, mat.alpha, self.vlen, order, psd)
+                d = energy.bend_isotropic(cfg, mat.alpha, self.vlen, order, psd, self.bending)
             elif name == "bend_material":
                 d = energy.bend_material(cfg, np.array(mat.bend_stiffness), self.vlen,
-                                         self.rest_curvature, order, psd)
+                                         self.rest_curvature, order, psd, self.bending)
             elif name == "twist":
                 off = self.boundary.seam_offset(self.vlen.shape[-1])
                 d = energy.twist(cfg, mat.beta, self.vlen, self.mbar, off, order, psd)

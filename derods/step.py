@@ -39,7 +39,9 @@ class RodSet(NamedTuple):
     naturally straight rod). edge_pos: each edge's place in the rod's twist system
     (identity; a ring's zig-zag order, :func:`derods.stencil.ring_order`), shape (n_edges,).
     ks [N], alpha (isotropic bending) [N m^2], beta [N m^2]: stiffnesses, shape (n_rods,);
-    bend: principal bending stiffnesses (B1, B2) [N m^2], shape (n_rods, 2).
+    bend: principal bending stiffnesses (B1, B2) [N m^2], shape (n_rods, 2). turning_angle:
+    True for a rod that bends by the turning angle (``Rod(bending="angle")``,
+    :class:`derods.geometry.TurningAngle`), False for Bergou's kb, shape (n_rods,), bool.
     kind: 1 for an isotropic, naturally straight rod (twist in closed form, a reduced
     rank-one term), 2 for an anisotropic or naturally curved one (Newton on the twist
     angles), shape (n_rods,). closed, has_twist (the rod carries the twist term), clamped
@@ -60,6 +62,7 @@ class RodSet(NamedTuple):
     ks: np.ndarray
     alpha: np.ndarray
     bend: np.ndarray
+    turning_angle: np.ndarray
     beta: np.ndarray
     kind: np.ndarray
     closed: np.ndarray
@@ -82,8 +85,8 @@ class RodSet(NamedTuple):
             boundaries = [None] * len(rods)
         counts = {"v": [], "e": [], "j": []}
         cols = {k: [] for k in ("rest_len", "vlen", "mbar", "wbar", "edge_pos")}
-        per_rod = {k: [] for k in ("ks", "alpha", "bend", "beta", "kind", "closed", "has_twist", "clamped",
-                                   "anchor_last", "fix_first", "fix_last", "theta_first", "theta_last",
+        per_rod = {k: [] for k in ("ks", "alpha", "bend", "turning_angle", "beta", "kind", "closed", "has_twist",
+                                   "clamped", "anchor_last", "fix_first", "fix_last", "theta_first", "theta_last",
                                    "total_twist")}
         for rod, bd in zip(rods, boundaries):
             bd = rod.boundary if bd is None else bd
@@ -106,6 +109,7 @@ class RodSet(NamedTuple):
                                  ("edge_pos", edge_pos)):
                     cols[key].append(val)
                 for key, val in (("ks", rod.ks), ("alpha", rod.material.alpha), ("bend", rod.material.bend_stiffness),
+                                 ("turning_angle", rod.bending == "angle"),
                                  ("beta", rod.material.beta), ("kind", 1 if rod.has_closed_form_twist else 2),
                                  ("closed", rod.closed), ("has_twist", "twist" in rod.active_terms),
                                  ("clamped", bd.kind in ("clamped", "ring")),
@@ -118,8 +122,8 @@ class RodSet(NamedTuple):
         off = lambda c: np.concatenate([[0], np.cumsum(c)]).astype(np.int64)  # noqa: E731
         flat = {k: np.ascontiguousarray(np.concatenate(v), dtype=np.int64 if k == "edge_pos" else float)
                 for k, v in cols.items()}
-        types = {"kind": np.int64, "closed": bool, "has_twist": bool, "clamped": bool, "anchor_last": bool,
-                 "fix_first": bool, "fix_last": bool}
+        types = {"kind": np.int64, "turning_angle": bool, "closed": bool, "has_twist": bool, "clamped": bool,
+                 "anchor_last": bool, "fix_first": bool, "fix_last": bool}
         rod_arrays = {k: np.array(v, dtype=types.get(k, float)) for k, v in per_rod.items()}
         return cls(off(counts["v"]), off(counts["e"]), off(counts["j"]), **flat, **rod_arrays)
 

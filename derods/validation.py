@@ -271,6 +271,7 @@ def twist_boundary(b) -> None:
 
 def rod_fields(rod) -> np.ndarray:
     """A :class:`~derods.Rod`'s parameters but its shape's turns; returns rest_x as floats."""
+    from .geometry import BENDING_MEASURES
     from .material import Material
     from .twist import TwistBoundary
 
@@ -301,6 +302,10 @@ def rod_fields(rod) -> np.ndarray:
                                     f"{int(np.flatnonzero(~np.isfinite(tw.ravel()))[0])}: pass finite angles")
     if rod.u0 is not None:
         vector("u0", rod.u0, 3, nonzero=True)
+    if not isinstance(rod.bending, str) or rod.bending not in BENDING_MEASURES:
+        refuse("bending", "'tan' (Bergou's curvature binormal, the default) or 'angle' (the turning angle)",
+               rod.bending, "pass bending='angle' to bend as MuJoCo's cable does, or leave it out",
+               InvalidInputError if isinstance(rod.bending, str) else InvalidTypeError)
     return x
 
 

@@ -21,12 +21,18 @@ from fdcheck import (
 )
 
 
-def random_rod(rng, nv: int, closed: bool):
+def random_rod(rng, nv: int, closed: bool, gentle: bool = False):
     """A non-degenerate random rod: a wobbly circle or arc, edges of 0.15-0.3 m,
-    turning angles well below pi, reference frames turned randomly about the tangents."""
-    s = np.linspace(0, 2 * np.pi, nv, endpoint=not closed)
-    x = np.stack([np.cos(s), np.sin(s), 0.3 * np.sin(2 * s)], axis=1) * 0.5
-    x += rng.normal(scale=0.04, size=x.shape)
+    turning angles well below pi, reference frames turned randomly about the tangents.
+    gentle: an open rod nearly straight instead, edges of ~0.25 m turning by less than
+    2 atan(ANGLE_SERIES_MAX / 2) = 0.49 rad (the turning angle's factors then in series)."""
+    if gentle:
+        x = np.stack([0.25 * np.arange(nv), np.zeros(nv), np.zeros(nv)], axis=1)
+        x += rng.normal(scale=0.02, size=x.shape)
+    else:
+        s = np.linspace(0, 2 * np.pi, nv, endpoint=not closed)
+        x = np.stack([np.cos(s), np.sin(s), 0.3 * np.sin(2 * s)], axis=1) * 0.5
+        x += rng.normal(scale=0.04, size=x.shape)
     t = fr.tangents(x, closed)
     u = fr.bishop_frames(x, closed)
     ang = rng.uniform(-np.pi, np.pi, size=t.shape[0])
@@ -44,31 +50,37 @@ def make_terms(rng, x, closed):
     mbar = rng.normal(scale=0.3, size=nj)
     offset = np.zeros(nj)
     offset[0] = 0.7 if closed else 0.0
-    return {
+    terms = {
         "stretch": lambda c, o, psd=False: en.stretch(c, 30.0, rest_len, o, psd),
-        "bend_isotropic": lambda c, o, psd=False: en.bend_isotropic(c, 2.0, vlen, o, psd),
-        "bend_anisotropic_straight": lambda c, o, psd=False: en.bend_material(
-            c, np.array([1.0, 3.0]), vlen, None, o, psd),
-        "bend_anisotropic_curved": lambda c, o, psd=False: en.bend_material(
-            c, np.array([1.0, 3.0]), vlen, wbar, o, psd),
-        "bend_isotropic_curved": lambda c, o, psd=False: en.bend_material(
-            c, np.array([2.0, 2.0]), vlen, wbar, o, psd),
+        "bend_isotropic": lambda c, o, psd=False, bending="tan": en.bend_isotropic(c, 2.0, vlen, o, psd, bending),
+        "bend_anisotropic_straight": lambda c, o, psd=False, bending="tan": en.bend_material(
+            c, np.array([1.0, 3.0]), vlen, None, o, psd, bending),
+        "bend_anisotropic_curved": lambda c, o, psd=False, bending="tan": en.bend_material(
+            c, np.array([1.0, 3.0]), vlen, wbar, o, psd, bending),
+        "bend_isotropic_curved": lambda c, o, psd=False, bending="tan": en.bend_material(
+            c, np.array([2.0, 2.0]), vlen, wbar, o, psd, bending),
         "twist": lambda c, o, psd=False: en.twist(c, 1.5, vlen, mbar, offset, o, psd),
     }
+    # Each bending term again with the turning angle as its measure (same stiffnesses and
+    # rest curvatures, natural and twisted frames alike).
+    for name in BENDS:
+        terms[name + "_angle"] = lambda c, o, psd=False, f=terms[name]: f(c, o, psd, "angle")
+    return terms
 
 
-TERMS = ["stretch", "bend_isotropic", "bend_anisotropic_straight", "bend_anisotropic_curved",
-         "bend_isotropic_curved", "twist"]
+BENDS = ["bend_isotropic", "bend_anisotropic_straight", "bend_anisotropic_curved", "bend_isotropic_curved"]
+ANGLE_TERMS = [name + "_angle" for name in BENDS]
+TERMS = ["stretch", *BENDS, "twist", *ANGLE_TERMS]
 
 
 class Problem:
     """E(q), q = (x flattened, theta), with reference frames time-parallel
     transported from the base configuration: the function the derivatives describe."""
 
-    def __init__(self, seed, closed, term, nv=7):
+    def __init__(self, seed, closed, term, nv=7, gentle=False):
         rng = np.random.default_rng(seed)
         self.closed = closed
-        self.x, self.t, self.u, self.theta = random_rod(rng, nv, closed)
+        self.x, self.t, self.u, self.theta = random_rod(rng, nv, closed, gentle)
         self.f = make_terms(rng, self.x, closed)[term]
         self.nv = nv
         self.q0 = np.concatenate([self.x.ravel(), self.theta])
@@ -110,6 +122,33 @@ def test_hessian_matches_central_differences(seed, closed, term):
     jac = fd_jacobian(p.grad, p.q0)
     assert rel_error(h, 0.5 * (jac + jac.T)) < HESS_RTOL
     assert rel_error(h, fd_hessian_from_energy(p.energy, p.q0)) < HESS_FROM_ENERGY_RTOL
+
+
+@pytest.mark.parametrize("seed,term", [(seed, term) for term in ANGLE_TERMS for seed in (0, 1)])
+def test_turning_angle_in_series_matches_central_differences(seed, term):
+    """The turning angle's bending terms on a nearly straight rod, whose joints all take the
+    factors' series (below 0.49 rad; the random rods above take their closed forms): gradient
+    and Hessian against central differences, with the tolerances of the tests above."""
+    p = Problem(seed, False, term, gentle=True)
+    assert np.max(ge.turning_angles(p.x, False)) < 2 * np.arctan(ge.ANGLE_SERIES_MAX / 2)
+    check_gradient(p.energy, p.grad, p.q0, GRAD_RTOL)
+    h = p.hessian(p.q0)
+    jac = fd_jacobian(p.grad, p.q0)
+    assert rel_error(h, 0.5 * (jac + jac.T)) < HESS_RTOL
+    assert rel_error(h, fd_hessian_from_energy(p.energy, p.q0)) < HESS_FROM_ENERGY_RTOL
+
+
+def test_checker_tells_the_measures_apart():
+    """The finite-difference check fails Bergou's gradient on the turning angle's energy (and
+    the reverse) on the same rod: the measures differ by about phi^2 / 12 of the curvature,
+    12 % at this rod's turns of 1.1-1.3 rad; the other measure's gradient is off by 0.72 and
+    0.33 of the largest entry (measured), far above GRAD_RTOL."""
+    for angle, tan in (("bend_isotropic_angle", "bend_isotropic"), ("bend_anisotropic_curved",
+                                                                     "bend_anisotropic_curved_angle")):
+        p, q = Problem(0, False, angle), Problem(0, False, tan)
+        check_gradient(p.energy, p.grad, p.q0)
+        with pytest.raises(AssertionError, match="central differences"):
+            check_gradient(p.energy, q.grad, p.q0)
 
 
 def test_checker_catches_a_wrong_gradient():
@@ -184,6 +223,21 @@ def test_circle_bending_energy(n):
     np.testing.assert_allclose(rel, 5 / 6 * (np.pi / n) ** 2, rtol=0.01)  # second order
 
 
+@pytest.mark.parametrize("n", [20, 50, 100])
+def test_circle_bending_energy_by_the_turning_angle(n):
+    """The turning angle's bending energy of the inscribed regular n-gon: every joint turns by
+    2 x, x = pi / n, and l = 4 R sin(x), so E = n alpha (2 x)^2 / l and E / (pi alpha / R) =
+    x / sin(x) = 1 + x^2 / 6 + O(x^4), exactly (to round-off): 0.066 % at n = 50, a fifth of
+    Bergou's tan^2(x) / (x sin x) (test_circle_bending_energy)."""
+    radius, alpha = 0.3, 2.0
+    x = shapes.circle(radius, n)
+    cfg = en.Configuration(x, True)
+    vlen = ge.voronoi_len(ge.norm(ge.edges(x, True)), True)
+    e = float(en.bend_isotropic(cfg, alpha, vlen, 0, bending="angle").energy)
+    half = np.pi / n
+    np.testing.assert_allclose(e / reference.circle_bending_energy(alpha, radius), half / np.sin(half), rtol=1e-12)
+
+
 def test_hairpin_fold_is_finite():
     """Edges folded back onto each other: energy and force stay finite and grow."""
     energies = []
@@ -196,6 +250,24 @@ def test_hairpin_fold_is_finite():
         assert np.all(np.isfinite(d.hessian.joint_xx))
         energies.append(float(d.energy))
     assert energies[0] < energies[1] < energies[2]
+
+
+def test_turning_angle_energy_stays_bounded_at_a_fold():
+    """As two edges fold back onto each other (phi -> pi) the turning angle's energy
+    alpha phi^2 / l stays below alpha pi^2 / l (here pi^2 / 2 J), where Bergou's
+    4 alpha tan^2(phi / 2) / l grows without bound (held finite by the CHI_MIN floor, which
+    below a gap of 1.4e-6 rad also clips kb and so the angle read from it); forces and
+    Hessian stay finite."""
+    for gap in (1e-2, 1e-4, 1e-6, 1e-9):
+        phi = np.pi - gap
+        x = np.array([[0, 0, 0], [1, 0, 0], [1 + np.cos(phi), np.sin(phi), 0]], dtype=float)
+        cfg = en.Configuration(x, False)
+        d = en.bend_isotropic(cfg, 1.0, np.array([2.0]), 2, bending="angle")
+        assert np.all(np.isfinite(d.grad_x)) and np.all(np.isfinite(d.hessian.joint_xx))
+        tan = float(en.bend_isotropic(cfg, 1.0, np.array([2.0]), 0).energy)
+        assert float(d.energy) <= np.pi**2 / 2 < tan
+        if gap >= 1e-4:
+            np.testing.assert_allclose(float(d.energy), phi**2 / 2, rtol=1e-12)
 
 
 def test_banded_hessian_matches_dense_and_solves():

@@ -338,8 +338,8 @@ def test_the_stress_colours_read_the_moment_as_the_cable_plugin_does():
     """``vmax`` colours a rod by its elastic moment [N m] (MuJoCo's cable plugin: the joints'
     moment on a jet scale up to vmax). A straight rod bent into an arc of radius R carries
     E I / R at its inner edges (DER's 2 tan(phi/2) per joint: within (phi/2)^2 / 3, phi the
-    turn per joint, here 1e-3 relative); twisted by Theta over L it carries G J Theta / L;
-    at rest it carries none; the scale runs blue (0) to red (vmax)."""
+    turn per joint, here 1e-3 relative; bending="angle": exactly); twisted by Theta over L it
+    carries G J Theta / L; at rest it carries none; the scale runs blue (0) to red (vmax)."""
     import dataclasses
 
     import derods
@@ -360,6 +360,9 @@ def test_the_stress_colours_read_the_moment_as_the_cable_plugin_does():
     w.set_positions(0, arc)
     moment = overlay.internal_moment(rod, arc, w.rod_state(0))
     np.testing.assert_allclose(moment[1:-1], mat.alpha / radius, rtol=1e-3)
+    # Bending by the turning angle, the arc's turn per joint is h / R: alpha / R to round-off.
+    by_angle = overlay.internal_moment(dataclasses.replace(rod, bending="angle"), arc, w.rod_state(0))
+    np.testing.assert_allclose(by_angle[1:-1], mat.alpha / radius, rtol=1e-12)
     flat = derods.Material(young=1e7, radius=0.005, radius2=0.004)  # anisotropic: it carries the twist term
     band = derods.Rod(shapes.straight(0.5, 50), flat)
     assert "twist" in band.active_terms

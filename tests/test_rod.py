@@ -33,11 +33,14 @@ def test_active_terms_follow_the_configuration():
     (lambda: shapes.circle(0.2, 30), True, True),
     (lambda: shapes.straight(1.0, 12), False, True),
 ])
-def test_rest_shape_is_stress_free(shape, closed, natural):
-    """Naturally curved rods rest in their own shape: zero energy and zero force."""
+@pytest.mark.parametrize("bending", ["tan", "angle"])
+def test_rest_shape_is_stress_free(shape, closed, natural, bending):
+    """Naturally curved rods rest in their own shape: zero energy and zero force, with either
+    measure of bending (the rest curvatures are taken with the measure the energy uses; taken
+    with the other, the helix would rest with 6e-5 J and forces of 0.06 N, measured)."""
     bd = TwistBoundary("ring") if closed else TwistBoundary()
     rod = derods.Rod(shape(), derods.Material(young=1e7, radius=0.01, radius2=0.006),
-                     closed=closed, boundary=bd)
+                     closed=closed, boundary=bd, bending=bending)
     state = rod.advance(rod.rest_state(), rod.rest_x)
     d = rod.derivatives(state, 1)
     assert abs(d.energy) < 1e-20
@@ -95,6 +98,19 @@ def test_rod_input_errors():
         derods.Rod(x[:, :2], MAT)
     with pytest.raises(ValueError, match="stretch_stiffness"):
         derods.Rod(x, MAT, stretch_stiffness=0.0)
+
+
+def test_bending_measure_is_checked():
+    """``bending`` takes "tan" or "angle"; anything else is refused naming the parameter, the
+    value and what to pass."""
+    x = shapes.straight(1.0, 5)
+    assert derods.Rod(x, MAT).bending == "tan"  # Bergou's measure unless asked otherwise
+    assert derods.Rod(x, MAT, bending="angle").bending == "angle"
+    with pytest.raises(derods.InvalidInputError, match=r"bending must be 'tan' \(Bergou's curvature binormal, the "
+                       r"default\) or 'angle' \(the turning angle\), got 'curvature' \(str\): pass bending='angle'"):
+        derods.Rod(x, MAT, bending="curvature")
+    with pytest.raises(derods.InvalidTypeError, match="bending must be"):
+        derods.Rod(x, MAT, bending=None)
 
 
 @pytest.mark.parametrize("gap", [0.0, 1e-9, 0.005])

@@ -131,6 +131,8 @@ BAD = [
     ("u0 zero", lambda w: Rod(X, MAT, u0=(0.0, 0.0, 0.0)), InvalidInputError, "u0"),
     ("u0 two numbers", lambda w: Rod(X, MAT, u0=(1.0, 0.0)), InvalidInputError, "u0"),
     ("boundary str", lambda w: Rod(X, MAT, boundary="clamped"), InvalidTypeError, "boundary"),
+    ("bending unknown", lambda w: Rod(X, MAT, bending="curvature"), InvalidInputError, "bending"),
+    ("bending not a str", lambda w: Rod(X, MAT, bending=True), InvalidTypeError, "bending"),
     ("closed rod, free boundary", lambda w: Rod(shapes.circle(0.1, 8), MAT, closed=True), InvalidInputError,
      "boundary"),
     # Rod's methods

@@ -3,7 +3,7 @@ numba typing them again at every call.
 
 numba types each argument of every call before it finds the compiled code for them: a
 bare array costs it ~0.02 us, but a named tuple ~0.4 us plus ~0.07 us per field, so the
-step's bundles (:class:`derods.step.RodSet`'s 22 arrays, the frames, the terms, the
+step's bundles (:class:`derods.step.RodSet`'s 23 arrays, the frames, the terms, the
 implicit system) cost ~3 us per call of the rod step and as much again for the implicit
 solve: a fifth of a small world's step (26 us for a 20-edge cantilever, measured). The
 bundles are immutable and an array's dtype, dimensions and layout never change, so the

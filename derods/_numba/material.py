@@ -6,7 +6,9 @@ and :func:`derods.twist.solve_newton`, which tests/test_step.py holds this to).
 E = sum_k [ sum_{s, c} B_c / (2 l_k) (omega_k^s_c - omegabar_k^s_c)^2 + beta / l_k (m_k - mbar_k)^2 ]
 (Bergou et al. 2008, eqs. 5-6), omega^s = (kb . m2^s, -kb . m1^s) in the material
 frame of the joint's edge s (s = 0 before, 1 after), m_k = theta^b - theta^a + ref_k
-(+ a ring's total twist at its seam joint 0). The twist angles minimize E at
+(+ a ring's total twist at its seam joint 0); kb is the rod's measure of bending, Bergou's
+or the turning angle's (:func:`derods._numba.rod_geometry.turning_angle`), while the
+reference twist's gradient keeps Bergou's kb. The twist angles minimize E at
 fixed centerline (damped Newton on the tridiagonal, on a ring cyclic, theta
 Hessian, with a backtracking line search); then the gradient in x and the
 Gauss-Newton Hessian at fixed theta (which overestimates the stiffness a relaxing
@@ -22,7 +24,7 @@ import numba as nb
 import numpy as np
 
 from .banded import cholesky_ok, solve_into
-from .rod_geometry import add_joint_hessian, curvature_binormal, joint_stencil, reference_twist
+from .rod_geometry import add_joint_hessian, curvature_binormal, joint_stencil, reference_twist, turning_angle
 
 #: Newton on the twist angles: stop when the largest free gradient entry is below TOL times
 #: the largest diagonal entry of the theta Hessian. The line search accepts a step whose
@@ -38,7 +40,7 @@ MAX_ITER = 50
 class FixedCenterline(NamedTuple):
     """A rod's twist problem at a fixed centerline, E(theta) in the module's formula: its
     reference directors u and tangents t (n_edges, 3); per joint, the curvature binormal kb
-    (n_joints, 3), the reference twist ref_twist [rad], the vertex length vlen [m], the
+    it bends by (n_joints, 3), the reference twist ref_twist [rad], the vertex length vlen [m], the
     natural twist mbar [rad] and the rest material curvatures wbar (n_joints, 2, 2); the
     principal bending stiffnesses b1, b2 and the twist stiffness beta [N m^2]; closed; a
     ring's imposed twist at its seam joint, offset [rad] (0 for an open rod)."""
@@ -192,7 +194,7 @@ def material_rod(rods, i, t, u, theta, theta_first, theta_last, place, grad, ab,
     edge [N m]: the moments held ends resist)."""
     j0, j1, e0 = rods.j_off[i], rods.j_off[i + 1], rods.e_off[i]
     vlen, mbar, wbar = rods.vlen[j0:j1], rods.mbar[j0:j1], rods.wbar[j0:j1]
-    b1, b2, beta, closed = rods.bend[i, 0], rods.bend[i, 1], rods.beta[i], rods.closed[i]
+    b1, b2, beta, closed, angle = rods.bend[i, 0], rods.bend[i, 1], rods.beta[i], rods.closed[i], rods.turning_angle[i]
     fix_first, fix_last, total_twist = rods.fix_first[i], rods.fix_last[i], rods.total_twist[i]
     edge_pos = rods.edge_pos[e0:rods.e_off[i + 1]]
     le, kbs, ref = work.edge_len, work.kb, work.ref_twist
@@ -204,6 +206,8 @@ def material_rod(rods, i, t, u, theta, theta_first, theta_last, place, grad, ab,
     for k in range(nj):
         ea, eb, _, _, _ = joint_stencil(k, closed, ne, nv)
         kb0, kb1, kb2, chi = curvature_binormal(t, le, ea, eb, ja, jb)
+        if angle:
+            kb0, kb1, kb2 = turning_angle(kb0, kb1, kb2, ja, jb)
         kbs[k, 0], kbs[k, 1], kbs[k, 2] = kb0, kb1, kb2
         ref[k] = reference_twist(u, t, ea, eb, chi)
     lo, hi = 0, ne
@@ -228,6 +232,8 @@ def material_rod(rods, i, t, u, theta, theta_first, theta_last, place, grad, ab,
     for k in range(nj):
         ea, eb, va, vm, vn = joint_stencil(k, closed, ne, nv)
         kb0, kb1, kb2, chi = curvature_binormal(t, le, ea, eb, ja, jb)
+        # bk: the curvature the rod bends by (ja, jb become its Jacobians); kb stays for the twist.
+        bk0, bk1, bk2 = turning_angle(kb0, kb1, kb2, ja, jb) if angle else (kb0, kb1, kb2)
         bl = (b1 / vlen[k], b2 / vlen[k])
         w_g[:] = 0.0
         for r in range(6):
@@ -235,7 +241,7 @@ def material_rod(rods, i, t, u, theta, theta_first, theta_last, place, grad, ab,
                 h6[r, c] = 0.0
         for side in range(2):
             e = ea if side == 0 else eb
-            w0, w1, m10, m11, m12, m20, m21, m22 = _omega(kb0, kb1, kb2, u, t, theta, e)
+            w0, w1, m10, m11, m12, m20, m21, m22 = _omega(bk0, bk1, bk2, u, t, theta, e)
             # omega_s0 = kb . n_s0 with n_s0 = m2, omega_s1 = kb . n_s1 with n_s1 = -m1.
             n_sc[side, 0, 0], n_sc[side, 0, 1], n_sc[side, 0, 2] = m20, m21, m22
             n_sc[side, 1, 0], n_sc[side, 1, 1], n_sc[side, 1, 2] = -m10, -m11, -m12

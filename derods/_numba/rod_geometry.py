@@ -1,5 +1,6 @@
 """What every compiled rod step shares: band writes, edges (transport, stretching), clamps
-turned with their bodies, and a joint's curvature binormal with its Jacobians.
+turned with their bodies, and a joint's curvature binormal with its Jacobians (Bergou's kb,
+or the turning angle's, :func:`turning_angle`).
 
 Conventions are those of :mod:`derods.geometry` and :mod:`derods.frames`: edge j
 joins vertices j and j + 1 (mod n on a ring); joint k joins edges k, k + 1 of an
@@ -15,7 +16,7 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from ..geometry import CHI_MIN
+from ..geometry import ANGLE_SERIES_MAX, ANGLE_SERIES_TERMS, CHI_MIN
 
 
 class Scratch(NamedTuple):
@@ -195,6 +196,38 @@ def curvature_binormal(t, le, ea, eb, ja, jb):
     jb[2, 0] -= 2.0 * a1 * fb
     jb[2, 1] += 2.0 * a0 * fb
     return kb0, kb1, kb2, chi
+
+
+@nb.njit(cache=True)
+def turning_angle(kb0, kb1, kb2, ja, jb):
+    """A joint's turning-angle curvature from Bergou's kb and its Jacobians ja, jb (as
+    :func:`curvature_binormal` leaves them; :class:`derods.geometry.TurningAngle`):
+    kb_angle = g kb, g = 2 atan(x / 2) / x, x = |kb|, so |kb_angle| = phi [rad]; ja, jb are
+    overwritten by G ja, G jb, G = d kb_angle / d kb = g I + a kb kb^T, a = g' / x (the
+    factors of :func:`derods.geometry.turning_angle_factors`, series below ANGLE_SERIES_MAX).
+    Returns kb_angle's three components."""
+    y = 0.25 * (kb0 * kb0 + kb1 * kb1 + kb2 * kb2)
+    if 4.0 * y < ANGLE_SERIES_MAX * ANGLE_SERIES_MAX:
+        g = 0.0
+        a = 0.0
+        for m in range(ANGLE_SERIES_TERMS, -1, -1):  # Horner, from the highest power of y
+            sign = -1.0 if m % 2 else 1.0
+            g = g * y + sign / (2 * m + 1)
+            if m >= 1:
+                a = a * y + sign * m / (2 * m + 1)
+        a = 0.5 * a
+    else:
+        root = math.sqrt(y)
+        g = math.atan(root) / root
+        a = (1.0 / (1.0 + y) - g) / (4.0 * y)
+    kbv = (kb0, kb1, kb2)
+    for c in range(3):
+        sa = kb0 * ja[0, c] + kb1 * ja[1, c] + kb2 * ja[2, c]
+        sb = kb0 * jb[0, c] + kb1 * jb[1, c] + kb2 * jb[2, c]
+        for r in range(3):
+            ja[r, c] = g * ja[r, c] + a * kbv[r] * sa
+            jb[r, c] = g * jb[r, c] + a * kbv[r] * sb
+    return g * kb0, g * kb1, g * kb2
 
 
 @nb.njit(cache=True)

@@ -31,7 +31,7 @@ import numpy as np
 
 from .material import material_rod
 from .rod_geometry import Scratch, add_joint_hessian, curvature_binormal, edges, joint_stencil, reference_twist
-from .rod_geometry import turn_clamps
+from .rod_geometry import turn_clamps, turning_angle
 
 
 @nb.njit(cache=True)
@@ -41,11 +41,14 @@ def isotropic_joints(rods, i, t, u, theta, theta_first, theta_last, place, grad,
     theta, place, grad, g_tw are the rod's slices, theta_first, theta_last [rad] its held
     end angles this step, ab its band, work a :class:`derods._numba.rod_geometry.Scratch`
     (edge_len filled by edges). Adds to grad [N] and the band [N/m]; writes g_tw [1/m]
-    (d total reference twist / dx) and theta [rad]. Returns (energy [J], twisting moment
-    lam [N m], twist stiffness c [N m])."""
+    (d total reference twist / dx) and theta [rad]. The rod bends by its measure (Bergou's kb,
+    or the turning angle's where rods.turning_angle[i]); its twist by Bergou's kb, the holonomy
+    of transport, either way. Returns (energy [J], twisting moment lam [N m], twist
+    stiffness c [N m])."""
     j0, j1 = rods.j_off[i], rods.j_off[i + 1]
     vlen, mbar = rods.vlen[j0:j1], rods.mbar[j0:j1]
     alpha, beta, closed, has_twist = rods.alpha[i], rods.beta[i], rods.closed[i], rods.has_twist[i]
+    angle = rods.turning_angle[i]
     clamped, anchor_last, total_twist = rods.clamped[i], rods.anchor_last[i], rods.total_twist[i]
     le, ref, ja, jb, h6, blocks = work.edge_len, work.ref_twist, work.jac_a, work.jac_b, work.h6, work.blocks
     nv = grad.shape[0]
@@ -58,12 +61,14 @@ def isotropic_joints(rods, i, t, u, theta, theta_first, theta_last, place, grad,
     for k in range(nj):
         ea, eb, va, vm, vn = joint_stencil(k, closed, ne, nv)
         kb0, kb1, kb2, chi = curvature_binormal(t, le, ea, eb, ja, jb)
+        # bk: the curvature the rod bends by (ja, jb become its Jacobians); kb stays for the twist.
+        bk0, bk1, bk2 = turning_angle(kb0, kb1, kb2, ja, jb) if angle else (kb0, kb1, kb2)
         cb = alpha / vlen[k]
-        energy += cb * (kb0 * kb0 + kb1 * kb1 + kb2 * kb2)
+        energy += cb * (bk0 * bk0 + bk1 * bk1 + bk2 * bk2)
         two_c = 2.0 * cb
         for c in range(3):
-            ga = two_c * (ja[0, c] * kb0 + ja[1, c] * kb1 + ja[2, c] * kb2)
-            gb = two_c * (jb[0, c] * kb0 + jb[1, c] * kb1 + jb[2, c] * kb2)
+            ga = two_c * (ja[0, c] * bk0 + ja[1, c] * bk1 + ja[2, c] * bk2)
+            gb = two_c * (jb[0, c] * bk0 + jb[1, c] * bk1 + jb[2, c] * bk2)
             grad[va, c] -= ga
             grad[vm, c] += ga - gb
             grad[vn, c] += gb

@@ -77,12 +77,14 @@ def internal_moment(rod, x: np.ndarray, state) -> np.ndarray:
     plugin colours by (the moment at its joints, averaged onto the segment): at each joint
     |(B1 dw1, B2 dw2)| and G J dm over its Voronoi length l_k / 2 (dw the material curvature
     less the rest's, dm the twist less the rest's; Bergou et al. 2008), combined as a vector,
-    then averaged onto the joint's edges."""
+    then averaged onto the joint's edges. The curvature is the rod's measure of bending
+    (``rod.bending``), the one its rest curvatures and its energy take."""
     from ..frames import material_curvatures, material_frames
-    from ..geometry import curvature_binormal
+    from ..geometry import JointGeometry, curvature, edges, joint_pairs
 
     m1, m2 = material_frames(state.u, state.t, state.theta)
-    w = material_curvatures(curvature_binormal(x, rod.closed), m1, m2, rod.closed)
+    kb = curvature(JointGeometry(*joint_pairs(edges(x, rod.closed), rod.closed)), rod.bending).kb
+    w = material_curvatures(kb, m1, m2, rod.closed)
     if rod.rest_curvature is not None:
         w = w - rod.rest_curvature
     w = w.mean(axis=-2)  # the joint's two edges' frames
