@@ -27,7 +27,7 @@ class Contacts(NamedTuple):
 
 @nb.njit(cache=True)
 def correct_aref(contacts, geom_body, moving, body_vel, xpos, efc_type, efc_pos, efc_margin, efc_vel, efc_kbip,
-                 efc_aref, h, pyramidal, frictionless):
+                 efc_aref, h, kinds):
     """Correct MuJoCo's contact rows' reference accelerations for what derods solves.
 
     1. Bodies that move without dofs (mocap bodies): MuJoCo's row i has
@@ -42,9 +42,12 @@ def correct_aref(contacts, geom_body, moving, body_vel, xpos, efc_type, efc_pos,
        its velocity enters v_i only where it approaches (keeping clear of its next pose),
        never to allow the rod closer than its surface now;
        a touching one is MuJoCo's soft row without the margin, -B_i v_i - K_i I_i d.
-    Pyramidal and frictionless rows; elliptic ones are left as they are. contacts: MuJoCo's
-    (:class:`Contacts`); efc_*: its rows' arrays; h: step [s].
+    Pyramidal, frictionless and elliptic rows (an elliptic contact's frictional rows have
+    no margin of their own: they take the motion, its normal row the margin). contacts:
+    MuJoCo's (:class:`Contacts`); efc_*: its rows' arrays; h: step [s]; kinds (3,):
+    MuJoCo's frictionless, pyramidal and elliptic contact types.
     """
+    frictionless, pyramidal, elliptic = kinds[0], kinds[1], kinds[2]
     ncon, con_geom, con_pos, con_frame = contacts.count, contacts.geom, contacts.pos, contacts.frame
     con_dim, con_friction, con_efc = contacts.dim, contacts.friction, contacts.efc_address
     rel = np.empty(6)
@@ -57,6 +60,8 @@ def correct_aref(contacts, geom_body, moving, body_vel, xpos, efc_type, efc_pos,
             n_rows = 1
         elif t == pyramidal:
             n_rows = 2 * (con_dim[c] - 1)
+        elif t == elliptic:
+            n_rows = con_dim[c]
         else:
             continue
         touched = False
@@ -86,7 +91,9 @@ def correct_aref(contacts, geom_body, moving, body_vel, xpos, efc_type, efc_pos,
         for q in range(n_rows):
             r = adr + q
             w = rel[0]
-            if t == pyramidal:
+            if t == elliptic:
+                w = rel[q]  # normal, slide along t1, t2, spin about n, roll about t1, t2
+            elif t == pyramidal:
                 # rows n + mu_k c_k, n - mu_k c_k; c: slide along t1, t2, spin about n, roll about t1, t2
                 k = q // 2
                 mu = con_friction[c, k]

@@ -11,7 +11,8 @@ solves, in the right metric A = M (1 + h a_m) + (h^2 + h b) K:
 
     minimize_a  1/2 (a - a0)^T A (a - a0) + sum_i 1/2 D_i min(J_i a - aref_i, 0)^2,
 
-MuJoCo's primal formulation for pyramidal (and frictionless) contacts, with
+MuJoCo's primal formulation for pyramidal (and frictionless) contacts (elliptic
+ones add their cone's cost), with
 a0 the unconstrained implicit acceleration. Each row of a rod touching a
 static obstacle touches at most two neighbouring vertices, so the Hessian
 A + J^T D J stays banded and Newton's method costs one banded Cholesky per
@@ -21,9 +22,10 @@ to other moving bodies join the solve with those bodies' whole kinematic trees:
 a tree of a few dofs as one more band block, a larger one (an arm with its hand)
 as the border of the band, by its Schur complement in each Newton step; the
 equalities and joint limits among the joined trees join too
-(:mod:`derods.sim.tree_rows`). Rows that reach bodies beyond them, and
-elliptic-cone rows, keep the force MuJoCo's own solver computed for them in the
-same step.
+(:mod:`derods.sim.tree_rows`). An elliptic contact's rows are solved as its cone,
+MuJoCo's own elliptic cost (:mod:`derods._numba.cones`). Rows that reach bodies
+beyond them, and elliptic rows in a solve with a border (held rods, large trees),
+keep the force MuJoCo's own solver computed for them in the same step.
 
 Two corrections of MuJoCo's reference accelerations come first
 (:class:`ReferenceCorrection`). Bodies that move without dofs (mocap bodies,
@@ -73,6 +75,8 @@ SUPPORTED = np.array([_PYRAMIDAL, _FRICTIONLESS, _ELLIPTIC])
 #: Those a solve with a border takes (rods held by bodies with dofs, a large tree touching
 #: a rod): elliptic rows keep MuJoCo's force there.
 SUPPORTED_BORDERED = np.array([_PYRAMIDAL, _FRICTIONLESS])
+#: The contact types the reference correction reads (contact_reference.correct_aref).
+_KINDS = np.array([_FRICTIONLESS, _PYRAMIDAL, _ELLIPTIC])
 #: No elliptic cone in a solve.
 NO_CONES = Cones(np.zeros((0, 6), dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros((0, 5)))
 #: Newton's method: iteration cap, and the tolerance on the gradient relative to the
@@ -351,6 +355,4 @@ class ReferenceCorrection:
         con = data.contact
         contacts = Contacts(data.ncon, con.geom, con.pos, con.frame, con.dim, con.friction, con.efc_address)
         correct_aref(contacts, self.geom_body, self.moving, self.vel, data.xpos, data.efc_type, data.efc_pos,
-                     data.efc_margin, data.efc_vel, data.efc_KBIP, data.efc_aref, self.h,
-                     int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL),
-                     int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS))
+                     data.efc_margin, data.efc_vel, data.efc_KBIP, data.efc_aref, self.h, _KINDS)
