@@ -18,7 +18,7 @@ import numba as nb
 import numpy as np
 
 from .banded import inverse_band, solve_columns
-from .cones import ConeContacts, Cones, cone_weights, share_patterns
+from .cones import block_cones, cone_groups, cone_weights, share_patterns
 from .contact_blocks import partition
 from .contact_newton import newton, no_border
 from .dense import inverse_quadratic_rows
@@ -317,62 +317,3 @@ def solve_block(row, col, val, efc_data, cone_contacts, efc_rows, supported, loc
         for i in range(len(efc)):  # derods' row forces, where MuJoCo's readers look for them
             efc_data.force[efc_rows[efc[i]]] = lam[i]
     a_out[:] = a
-
-
-@nb.njit(cache=True)
-def cone_groups(efc_rows, efc_type, cone_contacts):
-    """Each of a block's rows' group (:func:`derods._numba.contact_rows.split_bordered_rows`):
-    an elliptic contact's rows (efc_rows (k,): their numbers among MuJoCo's rows, each
-    contact's consecutive) the block number of its first, every other row its own; empty
-    if there is no elliptic contact."""
-    k = len(efc_rows)
-    if len(cone_contacts.adr) == 0:
-        return np.zeros(0, dtype=np.int64)
-    group = np.arange(k)
-    for b in range(k):
-        e = efc_rows[b]
-        if efc_type[e] == cone_contacts.elliptic:
-            first = cone_contacts.adr[cone_contacts.efc_id[e]]
-            group[b] = b - (e - first)
-    return group
-
-
-@nb.njit(cache=True)
-def block_cones(efc, efc_rows, efc_type, group, cone_contacts):
-    """The elliptic cones among a block's solved rows (:class:`derods._numba.cones.Cones`,
-    rows in the solve's order): efc (k,), the solved rows' block numbers; efc_rows,
-    efc_type, group: as :func:`cone_groups`."""
-    if len(group) == 0:
-        return Cones(np.zeros((0, 6), dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros((0, 5)))
-    at = np.full(len(group), -1, dtype=np.int64)
-    for i in range(len(efc)):
-        at[efc[i]] = i
-    nc = 0
-    for i in range(len(efc)):
-        b = efc[i]
-        if group[b] == b and _is_cone(efc_rows[b], efc_type, cone_contacts):
-            nc += 1
-    rows = np.full((nc, 6), -1, dtype=np.int64)
-    dim = np.zeros(nc, dtype=np.int64)
-    mu = np.zeros(nc)
-    friction = np.zeros((nc, 5))
-    c = 0
-    for i in range(len(efc)):
-        b = efc[i]
-        if not (group[b] == b and _is_cone(efc_rows[b], efc_type, cone_contacts)):
-            continue
-        con = cone_contacts.efc_id[efc_rows[b]]
-        dim[c] = cone_contacts.dim[con]
-        mu[c] = cone_contacts.mu[con]
-        friction[c] = cone_contacts.friction[con]
-        for j in range(dim[c]):
-            rows[c, j] = at[b + j]
-        c += 1
-    return Cones(rows, dim, mu, friction)
-
-
-@nb.njit(cache=True)
-def _is_cone(e, efc_type, cone_contacts):
-    """Whether MuJoCo's row e is the first of an elliptic contact."""
-    return efc_type[e] == cone_contacts.elliptic and cone_contacts.adr[cone_contacts.efc_id[e]] == e
-

@@ -46,8 +46,8 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
     small dense system, and the border by its Schur complement on B (m more solves).
     rows: the rows J (:class:`derods._numba.contact_rows.Rows`); aref (k,) their reference
     accelerations, d (k,) their weights; cones: the elliptic friction cones among them
-    (:class:`derods._numba.cones.Cones`, their rows' cost MuJoCo's elliptic one instead;
-    none with a border), which enter the linear algebra as virtual rows
+    (:class:`derods._numba.cones.Cones`, their rows' cost MuJoCo's elliptic one instead),
+    which enter the linear algebra as virtual rows
     (:func:`derods._numba.cones.virtual_rows`)."""
     g, tw_lo, tw_hi, mass, a_band = system.g, system.tw_lo, system.tw_hi, system.mass, system.a_band
     s, m_coef = system.weights[1], system.weights[0]
@@ -62,6 +62,7 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
     k = kb + kf
     n_tw = len(tw_lo)
     hfq, hqq, jq = border.h_fq, border.h_qq, border.j_q
+    jqv = jq.copy() if nc else jq  # the border entries of the rows the Hessian sees
     m = hqq.shape[0]
     in_cone = np.zeros(k, dtype=np.bool_)
     for c in range(nc):
@@ -119,7 +120,7 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
         if nc:
             virtual_jar(cones, basis, wv, jar, w, wjar)
         if cones_moved:
-            write_virtual(rows, vrows, kb, cones, basis)
+            write_virtual(rows, vrows, jq, jqv, kb, cones, basis)
             if not iterative:
                 far_cols, far_first = far_columns(vrows, n)
         grad = transpose_apply_all(vrows, wjar, n)
@@ -131,7 +132,7 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
         for j in range(m):
             acc = amq[j]
             for i in range(k):
-                acc += jq[i, j] * wjar[i]
+                acc += jqv[i, j] * wjar[i]
             gq[j] = acc
             gmax = max(gmax, abs(acc))
         if gmax <= tol * scale:
@@ -201,7 +202,7 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
         if m:
             # The border by its Schur complement: C = H_fq + J_f^T W J_q, E = H_qq + J_q^T W J_q,
             # Z = (B + far)^-1 C, S = E - C^T Z; S dq = -g_q - C^T delta, delta -= Z dq.
-            cw, ew = _border_blocks(vrows, hfq, hqq, jq, w, n)
+            cw, ew = _border_blocks(vrows, hfq, hqq, jqv, w, n)
             zc_ = cw.copy()
             solve_columns(lt, zc_, 0, n, 0)
             twist_update_columns(system, ztw, zspan, zc_)

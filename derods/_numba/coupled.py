@@ -19,6 +19,7 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
+from .cones import Cones, block_cones, cone_groups, share_patterns
 from .contact_rows import Rows, efc_triplets, split_bordered_rows, transpose_apply_all
 from .dense import lu_factor
 
@@ -29,7 +30,8 @@ class BorderedRows(NamedTuple):
     first); rows (:class:`derods._numba.contact_rows.Rows`) their entries on the local
     dofs, jq (k, m) on the border's; ext (n,) and ext_q (m,) [N] MuJoCo's force of the rows
     it keeps on either; aref (k,) [m/s^2] the rows' reference accelerations and ratio (k,)
-    MuJoCo's R / diagA (its impedance, :func:`derods._numba.contact.row_weights`)."""
+    MuJoCo's R / diagA (its impedance, :func:`derods._numba.contact.row_weights`); cones
+    (:class:`derods._numba.cones.Cones`) the elliptic contacts among them."""
 
     efc: np.ndarray
     rows: Rows
@@ -38,37 +40,43 @@ class BorderedRows(NamedTuple):
     ext_q: np.ndarray
     aref: np.ndarray
     ratio: np.ndarray
+    cones: Cones
 
 
 @nb.njit(cache=True)
-def bordered_rows(efc, supported_types, own, local_of_dof, border_of_dof, n, m, width):
+def bordered_rows(efc, cone_contacts, supported_types, own, local_of_dof, border_of_dof, n, m, width):
     """MuJoCo's rows (``efc``, :class:`derods._numba.contact.Efc`) split for a solve over n
     local dofs bordered by m more (:func:`derods._numba.contact_rows.split_bordered_rows`;
     local_of_dof, border_of_dof (nv,): each MuJoCo dof's place among them, -1 elsewhere),
-    in one call: the supported types (supported_types (2,)), the rows ``own`` (nefc,) bool
+    in one call: the supported types (supported_types), the rows ``own`` (nefc,) bool
     or empty that take no force at all (neither solved nor MuJoCo's: a held edge against
-    its own holder), the far rows as CSR
+    its own holder), the far rows as CSR, an elliptic contact's rows as its cone
+    (cone_contacts: :class:`derods._numba.cones.ConeContacts`)
     and the solved rows' aref and R / diagA. Returns a :class:`BorderedRows`."""
     nefc = efc.nefc
     row, col, val = efc_triplets(efc.is_sparse, nefc, efc.nv, efc.j, efc.rownnz, efc.rowadr, efc.colind)
-    supported = np.empty(nefc, dtype=np.bool_)
+    supported = np.zeros(nefc, dtype=np.bool_)
     force = np.empty(nefc)
     for r in range(nefc):
-        supported[r] = efc.type[r] == supported_types[0] or efc.type[r] == supported_types[1]
+        for t in supported_types:
+            if efc.type[r] == t:
+                supported[r] = True
         force[r] = efc.force[r]
         if len(own) and own[r]:
             supported[r] = False
             force[r] = 0.0
+    numbers = np.arange(nefc)
+    group = cone_groups(numbers, efc.type, cone_contacts)
     solved, kb, col0, jw, far, jq, ext, ext_q = split_bordered_rows(row, col, val, local_of_dof, border_of_dof,
-                                                                   np.zeros(0, dtype=np.int64), supported, force,
-                                                                   n, m, width)
-    fptr, fcol, fval = far
+                                                                   group, supported, force, n, m, width)
+    cones = block_cones(solved, numbers, efc.type, group, cone_contacts)
+    fptr, fcol, fval = share_patterns(far[0], far[1], far[2], kb, cones) if len(cones.dim) else far
     aref = np.empty(len(solved))
     ratio = np.empty(len(solved))
     for i in range(len(solved)):
         aref[i] = efc.aref[solved[i]]
         ratio[i] = efc.r[solved[i]] / efc.diag_a[solved[i]]
-    return BorderedRows(solved, Rows(col0, jw, fptr, fcol, fval), jq, ext, ext_q, aref, ratio)
+    return BorderedRows(solved, Rows(col0, jw, fptr, fcol, fval), jq, ext, ext_q, aref, ratio, cones)
 
 
 @nb.njit(cache=True)

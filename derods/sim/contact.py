@@ -24,8 +24,7 @@ as the border of the band, by its Schur complement in each Newton step; the
 equalities and joint limits among the joined trees join too
 (:mod:`derods.sim.tree_rows`). An elliptic contact's rows are solved as its cone,
 MuJoCo's own elliptic cost (:mod:`derods._numba.cones`). Rows that reach bodies
-beyond them, and elliptic rows in a solve with a border (held rods, large trees),
-keep the force MuJoCo's own solver computed for them in the same step.
+beyond them keep the force MuJoCo's own solver computed for them in the same step.
 
 Two corrections of MuJoCo's reference accelerations come first
 (:class:`ReferenceCorrection`). Bodies that move without dofs (mocap bodies,
@@ -51,7 +50,7 @@ import numpy as np
 from .._numba import contact as _k
 from .._numba.banded import cholesky_into
 from .._numba.calls import Bound
-from .._numba.cones import ConeContacts, Cones
+from .._numba.cones import ConeContacts, cone_weights
 from .._numba.contact_newton import Border, newton
 from .._numba.contact_reference import Contacts, correct_aref
 from .._numba.contact_rows import efc_triplets
@@ -72,13 +71,8 @@ _ELLIPTIC = int(mujoco.mjtConstraint.mjCNSTR_CONTACT_ELLIPTIC)
 #: The constraint types derods re-solves: MuJoCo's pyramidal, frictionless and elliptic
 #: contacts (an elliptic one as its cone, :mod:`derods._numba.cones`).
 SUPPORTED = np.array([_PYRAMIDAL, _FRICTIONLESS, _ELLIPTIC])
-#: Those a solve with a border takes (rods held by bodies with dofs, a large tree touching
-#: a rod): elliptic rows keep MuJoCo's force there.
-SUPPORTED_BORDERED = np.array([_PYRAMIDAL, _FRICTIONLESS])
 #: The contact types the reference correction reads (contact_reference.correct_aref).
 _KINDS = np.array([_FRICTIONLESS, _PYRAMIDAL, _ELLIPTIC])
-#: No elliptic cone in a solve.
-NO_CONES = Cones(np.zeros((0, 6), dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros((0, 5)))
 #: Newton's method: iteration cap, and the tolerance on the gradient relative to the
 #: problem's force scale.
 MAX_ITER = 30
@@ -226,8 +220,8 @@ class ContactStep:
         border_of_dof[dofs] = np.arange(k)
         metric = self._dynamics.metric(m, data, dofs)
         efc, solvable = self._tree_rows(data, np.concatenate([small, large]))
-        rows = bordered_rows(efc, SUPPORTED_BORDERED, np.zeros(0, dtype=np.bool_), ext.local_of_dof,
-                             border_of_dof, ext.n, k, WINDOW)
+        rows = bordered_rows(efc, self.cone_contacts(data), SUPPORTED, np.zeros(0, dtype=np.bool_),
+                             ext.local_of_dof, border_of_dof, ext.n, k, WINDOW)
         start = ext.a0.copy()
         if rows.ext.any():
             e = rows.ext.copy()
@@ -242,8 +236,9 @@ class ContactStep:
             no_coupling = np.zeros((ext.n, k))
             weights = _k.row_weights(ext.system, rows.rows, no_coupling, rows.jq, lu, piv, rows.ratio,
                                      np.zeros(0, dtype=np.int64))
+            cone_weights(weights, rows.cones)
             a, a_q, lam, _ = newton(ext.system, start, rows.rows, rows.aref, weights,
-                                    Border(no_coupling, metric, rows.jq, a_q), NO_CONES, MAX_ITER, TOL)
+                                    Border(no_coupling, metric, rows.jq, a_q), rows.cones, MAX_ITER, TOL)
         row_forces_into(rows, lam, self.force, efc.force)
         if solvable is not None:
             solvable.finish(data)

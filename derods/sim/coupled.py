@@ -44,12 +44,13 @@ import numpy as np
 
 from .._numba import contact as _k
 from .._numba.calls import Bound
+from .._numba.cones import cone_weights
 from .._numba.contact_newton import Border, newton
 from .._numba.coupled import (BorderedRows, bordered_rows, force_into, holder_steps_into, moved_into,
                               row_forces_into, start_into)
 from .._numba.dense import lu_solve, spd_factor
 from .._numba.implicit import sm_solve_columns_into, sm_solve_into
-from .contact import MAX_ITER, NO_CONES, SUPPORTED_BORDERED, TOL, WINDOW, ContactStep, WithTrees
+from .contact import MAX_ITER, SUPPORTED, TOL, WINDOW, ContactStep, WithTrees
 from .holders import Holders
 from .layout import element_bodies
 
@@ -175,6 +176,8 @@ class CoupledStep:
             # MuJoCo's impedance kept in this metric (see the module docstring)
             weights = self._keyed(self._row_weights, plain, (ext_sys.system, d, y, lu, piv),
                                   ext_sys.system, rows.rows, big_y, rows.jq, lu, piv, rows.ratio, self._no_rods)
+            if len(rows.cones.dim):
+                cone_weights(weights, rows.cones)
 
         def solve(arc=None):
             """a, a_q and the rows' multipliers (None: no rows) with the held points moved
@@ -195,7 +198,7 @@ class CoupledStep:
                 return a.copy(), f_q.copy(), None  # (the buffers are the next solve's)
             a, aq, lam, _ = self._keyed(self._newton, plain, (ext_sys.system, d, a, h_fq, h_qq, f_q),
                                         ext_sys.system, a, rows.rows, rows.aref, weights,
-                                        Border(h_fq, h_qq, rows.jq, f_q), NO_CONES, MAX_ITER, TOL)
+                                        Border(h_fq, h_qq, rows.jq, f_q), rows.cones, MAX_ITER, TOL)
             return a, aq, lam
 
         if not hl.turning:  # held points only translate: no arcs
@@ -233,12 +236,12 @@ class CoupledStep:
     def _rows(self, d: mujoco.MjData, ext_sys: WithTrees, own: np.ndarray | None) -> BorderedRows:
         """MuJoCo's rows of this step split for the solve over the rods' dofs (and the
         touching trees', ext_sys) bordered by the holders' (:func:`bordered_rows`)."""
-        rest = (SUPPORTED_BORDERED, self._no_rows if own is None else own, ext_sys.local_of_dof, self.border_of_dof,
+        rest = (SUPPORTED, self._no_rows if own is None else own, ext_sys.local_of_dof, self.border_of_dof,
                 ext_sys.n, self.m, WINDOW)
-        efc = self.contact.rows(d)
+        efc, cones = self.contact.rows(d), self.contact.cone_contacts(d)
         if own is None and ext_sys.n == self.layout.n:  # the rest: the same objects every step
-            return self._bordered_rows.keyed((d,) + rest, (efc,) + rest)
-        return self._bordered_rows.kernel(efc, *rest)
+            return self._bordered_rows.keyed((d, d if self.contact.elliptic else cones) + rest, (efc, cones) + rest)
+        return self._bordered_rows.kernel(efc, cones, *rest)
 
     @staticmethod
     def _keyed(bound: Bound, plain: bool, key: tuple, *args):

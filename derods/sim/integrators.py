@@ -33,7 +33,7 @@ from .._numba import step as _rods
 from .._numba.projection import limit_chunk, limit_strain, projection_step, touching_into
 from ..step import EndBodies, Frames, RodSet, Terms, evaluate
 from .clamps import Reactions
-from .contact import SUPPORTED, SUPPORTED_BORDERED, ContactStep, ReferenceCorrection
+from .contact import SUPPORTED, ContactStep, ReferenceCorrection
 from .coupled import CoupledStep
 from .forward import Forward
 from .friction import StaticFriction
@@ -262,7 +262,7 @@ class Implicit(Step):
         #: rows on the rods' dofs, and on their holders' trees (solved with them).
         solved = self.layout.local_of_dof >= 0
         solved[self.holders.tree] = True
-        self.forward = Forward(self.model, solved, SUPPORTED_BORDERED if self.holders else SUPPORTED)
+        self.forward = Forward(self.model, solved, SUPPORTED)
         rod_flex = [mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_FLEX, e.name) for e in self.entries]
         margin = bool(np.any(self.model.flex_margin[rod_flex] > 0))
         self.reference = ReferenceCorrection(self.model, self.data, margin)
