@@ -18,7 +18,7 @@ from .banded import cholesky_into, solve_columns, solve_into
 from .dense import spd_factor as _spd_factor, spd_solve_factored as _spd_solve_factored
 from .contact_rows import FAR_DENSE_MAX, Rows, apply_all, exact_line_search, far_columns, rows_band, transpose_apply_all
 from .cones import cone_forces, cone_line_search, virtual_jar, virtual_rows, write_virtual
-from .contact_cg import cg_direction
+from .contact_cg import cg_direction, far_blocks_into_band
 from .implicit import k_matvec_into, twist_spans, twist_update_columns
 
 #: m dofs that border the band of a contact solve (bodies holding rods, solved with them):
@@ -90,13 +90,15 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
     scale = m1 + m2 + 1e-300
     w = np.empty(k)
     wjar = np.empty(k)
-    w_factored = np.full(kb, -1.0)  # the banded weights B was last factored with
     ab = np.empty_like(a_band)
     lt = np.empty((n, a_band.shape[0]))
     ztw = np.zeros((n, n_tw))
     zspan = np.zeros((n_tw, 2), dtype=np.int64)
-    # Many far rows and no border: Newton's direction by conjugate gradients (contact_cg).
+    # Many far rows and no border: Newton's direction by conjugate gradients (contact_cg),
+    # preconditioned with B and the far rows' blocks that fit the band (their weights too
+    # then decide when B is factored again).
     iterative = m == 0 and kf > FAR_DENSE_MAX
+    w_factored = np.full(k if iterative else kb, -1.0)  # the weights B was last factored with
     zf = np.zeros((n, 0 if iterative else kf))
     zf_ready = False
     if iterative:
@@ -138,7 +140,7 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
         if gmax <= tol * scale:
             break
         same = it > 1 and not cones_moved  # B is factored first, then when its rows change
-        for i in range(kb):
+        for i in range(len(w_factored)):
             if w[i] != w_factored[i]:
                 same = False
                 break
@@ -148,6 +150,8 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
             for dd in range(extra.shape[0]):
                 for j in range(n):
                     ab[dd, j] += extra[dd, j]
+            if iterative:
+                far_blocks_into_band(ab, fptr, fcol, fval, w[kb:])
             cholesky_into(ab, lt)
             ztw[:] = 0.0
             for i in range(n_tw):
@@ -156,7 +160,7 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
             if n_tw:
                 solve_columns(lt, ztw, 0, n, 0)
                 twist_spans(ztw, zspan)
-            w_factored[:] = w[:kb]
+            w_factored[:] = w[:len(w_factored)]
             zf_ready = False
         # The Newton direction: -(B + twist)^-1 grad, then the far rows by Woodbury.
         for j in range(n):
