@@ -209,9 +209,9 @@ def _box_on_cable(box_mass: float, trees: bool, monkeypatch, links: int = 0,
 #: cones (measured 0.86 mm), half with elliptic ones (measured 1.56 mm): MuJoCo's elliptic
 #: normal row is softer than derods' pyramid rows at mu = 1. Both keep MuJoCo's impedance
 #: R / diagA, and MuJoCo's diagA of a pyramid row is 2 mu^2 (1 + mu^2) times the normal's,
-#: its true J A^-1 J^T (1 + mu^2) times: derods' pyramid rows are 2 mu^2 stiffer than
-#: MuJoCo's own (a rod resting on a floor at mu = 1: 0.011 mm deep, elliptic 0.030 mm;
-#: in MuJoCo a sphere sinks 0.367 mm with either cone at mu = 1).
+#: its true J A^-1 J^T (1 + mu^2) times: derods' pyramid rows weigh 2 mu^2 times MuJoCo's
+#: own (stiffer above mu = 0.71, softer below; a rod resting on a floor at mu = 1: 0.011 mm
+#: deep, elliptic 0.030 mm; in MuJoCo a sphere sinks 0.367 mm with either cone at mu = 1).
 SINK = {"pyramidal": 0.006 / 4, "elliptic": 0.006 / 2}
 
 
