@@ -15,7 +15,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from derods._numba import contact_newton as _newton
-from derods._numba.cones import no_cones
 from derods._numba import contact_rows as _rows
 from derods._numba import implicit as _implicit
 from derods._numba.banded import cholesky_into, inverse_band, matvec_into, solve_columns
@@ -186,7 +185,7 @@ def contact_solve(system: ImplicitSystem, a0: np.ndarray, rows: ContactRows, max
     a, _, lam, it = _newton.newton(system.arrays, np.ascontiguousarray(a0, dtype=float), rows.rows(system.n),
                                    np.ascontiguousarray(rows.aref, dtype=float),
                                    np.ascontiguousarray(rows.d, dtype=float), _newton.no_border(system.n, len(rows)),
-                                   no_cones(), max_iter, tol)
+                                   None, max_iter, tol)
     return a, lam, it
 
 

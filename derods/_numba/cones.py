@@ -46,7 +46,8 @@ class ConeContacts(NamedTuple):
     """MuJoCo's contacts, as a contact stage finds its elliptic cones: elliptic, MuJoCo's
     constraint type of elliptic contact rows; efc_id (nefc,), each row's contact; per
     contact (ncon) its first row adr, dim, mu and friction (ncon, 5). Empty arrays: no
-    elliptic contact in the model."""
+    contact this step. A model without elliptic cones passes None instead (compiled
+    without them: five arrays less to hand over on every contact step)."""
 
     elliptic: int
     efc_id: np.ndarray
@@ -54,12 +55,6 @@ class ConeContacts(NamedTuple):
     dim: np.ndarray
     mu: np.ndarray
     friction: np.ndarray
-
-
-@nb.njit(cache=True)
-def no_cones():
-    """No elliptic cone."""
-    return Cones(np.zeros((0, 6), dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros((0, 5)))
 
 
 @nb.njit(cache=True)
@@ -344,8 +339,10 @@ def cone_groups(efc_rows, efc_type, cone_contacts):
     """Each of a block's rows' group (:func:`derods._numba.contact_rows.split_bordered_rows`):
     an elliptic contact's rows (efc_rows (k,): their numbers among MuJoCo's rows, each
     contact's consecutive) the block number of its first, every other row its own; empty
-    if there is no elliptic contact."""
+    if there is no elliptic contact (cone_contacts None or empty)."""
     k = len(efc_rows)
+    if cone_contacts is None:
+        return np.zeros(0, dtype=np.int64)
     if len(cone_contacts.adr) == 0:
         return np.zeros(0, dtype=np.int64)
     group = np.arange(k)
@@ -362,8 +359,10 @@ def block_cones(efc, efc_rows, efc_type, group, cone_contacts):
     """The elliptic cones among a block's solved rows (:class:`derods._numba.cones.Cones`,
     rows in the solve's order): efc (k,), the solved rows' block numbers; efc_rows,
     efc_type, group: as :func:`cone_groups`."""
+    if cone_contacts is None:
+        return Cones(group.reshape((0, 6)), group, np.zeros(0), np.zeros((0, 5)))
     if len(group) == 0:
-        return Cones(np.zeros((0, 6), dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros((0, 5)))
+        return Cones(group.reshape((0, 6)), group, np.zeros(0), np.zeros((0, 5)))
     at = np.full(len(group), -1, dtype=np.int64)
     for i in range(len(efc)):
         at[efc[i]] = i

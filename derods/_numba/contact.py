@@ -312,7 +312,10 @@ def solve_block(row, col, val, efc_data, cone_contacts, efc_rows, supported, loc
         d = row_weights(system, rows, np.zeros((n, 0)), np.zeros((len(efc), 0)), np.zeros((0, 0)),
                         np.zeros(0, dtype=np.int64), r_over_diag, rod_of_dof)
         cone_weights(d, cones)
-        a, _, lam, _ = newton(system, a, rows, aref, d, no_border(n, len(efc)), cones, max_iter, tol)
+        if len(cones.dim):
+            a, _, lam, _ = newton(system, a, rows, aref, d, no_border(n, len(efc)), cones, max_iter, tol)
+        else:  # compiled without cones
+            a, _, lam, _ = newton(system, a, rows, aref, d, no_border(n, len(efc)), None, max_iter, tol)
         force_out += transpose_apply_all(rows, lam, n)
         for i in range(len(efc)):  # derods' row forces, where MuJoCo's readers look for them
             efc_data.force[efc_rows[efc[i]]] = lam[i]

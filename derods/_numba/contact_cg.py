@@ -45,8 +45,9 @@ def h_apply(system, rows, w, v, kv, out):
 def cg_direction(system, rows, w, lt, ztw, zspan, grad, delta):
     """Newton's direction delta (n,) = -H^-1 grad, H = A + J^T W J over every active row
     (weights w), by conjugate gradients from zero preconditioned with B + twist, H less
-    its far rows (factored: lt, ztw, zspan; see :func:`derods._numba.contact_newton.newton`): each iterate lowers Newton's
-    quadratic model, so any is a descent direction. Each far row's weight times its
+    the products between a far row's distant parts (factored: lt, ztw, zspan; see
+    :func:`far_blocks_into_band` and :func:`derods._numba.contact_newton.newton`): each
+    iterate lowers Newton's quadratic model, so any is a descent direction. Each far row's weight times its
     Delassus entry is MuJoCo's d / (1 - d) (the rows' weights keep its impedance), so the
     far rows lift H's spectrum over B's by tens, and CG_TOL is met in tens of iterations
     where Woodbury's dense system of the active far rows grows as their cube (a pile's

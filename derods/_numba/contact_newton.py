@@ -46,15 +46,15 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
     small dense system, and the border by its Schur complement on B (m more solves).
     rows: the rows J (:class:`derods._numba.contact_rows.Rows`); aref (k,) their reference
     accelerations, d (k,) their weights; cones: the elliptic friction cones among them
-    (:class:`derods._numba.cones.Cones`, their rows' cost MuJoCo's elliptic one instead),
-    which enter the linear algebra as virtual rows
+    (:class:`derods._numba.cones.Cones`, their rows' cost MuJoCo's elliptic one instead;
+    None for none: compiled then without a trace of them), which enter the linear algebra
+    as virtual rows
     (:func:`derods._numba.cones.virtual_rows`)."""
     g, tw_lo, tw_hi, mass, a_band = system.g, system.tw_lo, system.tw_hi, system.mass, system.a_band
     s, m_coef = system.weights[1], system.weights[0]
-    nc = len(cones.dim)
+    nc = 0 if cones is None else len(cones.dim)
     # The rows the Hessian and gradient see: the cones' virtual rows in place of theirs.
-    vrows = Rows(rows.col0, rows.jw.copy() if nc else rows.jw, rows.fptr, rows.fcol,
-                 rows.fval.copy() if nc else rows.fval)
+    vrows = rows if cones is None else Rows(rows.col0, rows.jw.copy(), rows.fptr, rows.fcol, rows.fval.copy())
     col0, jw, fptr, fcol, fval = vrows
     n = len(a0)
     kb = len(col0)
@@ -62,14 +62,15 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
     k = kb + kf
     n_tw = len(tw_lo)
     hfq, hqq, jq = border.h_fq, border.h_qq, border.j_q
-    jqv = jq.copy() if nc else jq  # the border entries of the rows the Hessian sees
+    jqv = jq if cones is None else jq.copy()  # the border entries of the rows the Hessian sees
     m = hqq.shape[0]
-    in_cone = np.zeros(k, dtype=np.bool_)
-    for c in range(nc):
-        for j in range(cones.dim[c]):
-            in_cone[cones.rows[c, j]] = True
-    basis = np.zeros((nc, 6, 6))
-    wv = np.zeros((nc, 6))
+    if cones is not None:
+        in_cone = np.zeros(k, dtype=np.bool_)
+        for c in range(nc):
+            for j in range(cones.dim[c]):
+                in_cone[cones.rows[c, j]] = True
+        basis = np.zeros((nc, 6, 6))
+        wv = np.zeros((nc, 6))
     a = a0.copy()
     aq = border.a0.copy()
     am = np.zeros(n)  # H (a - a0), updated along the steps instead of recomputed
@@ -118,13 +119,14 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
         for i in range(k):
             w[i] = d[i] if jar[i] < 0 else 0.0
             wjar[i] = w[i] * jar[i]
-        cones_moved = nc > 0 and virtual_rows(cones, jar, d, basis, wv)
-        if nc:
+        cones_moved = False
+        if cones is not None:
+            cones_moved = virtual_rows(cones, jar, d, basis, wv)
             virtual_jar(cones, basis, wv, jar, w, wjar)
-        if cones_moved:
-            write_virtual(rows, vrows, jq, jqv, kb, cones, basis)
-            if not iterative:
-                far_cols, far_first = far_columns(vrows, n)
+            if cones_moved:
+                write_virtual(rows, vrows, jq, jqv, kb, cones, basis)
+                if not iterative:
+                    far_cols, far_first = far_columns(vrows, n)
         grad = transpose_apply_all(vrows, wjar, n)
         gmax = 0.0
         for j in range(n):
@@ -251,10 +253,10 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
         for j in range(n):
             d_a += delta[j] * ad[j]
             d_g += delta[j] * am[j]
-        if nc:
-            t = cone_line_search(jar, jd, d, in_cone, cones, d_a, d_g)
-        else:
+        if cones is None:
             t = exact_line_search(jar, jd, d, d_a, d_g)
+        else:
+            t = cone_line_search(jar, jd, d, in_cone, cones, d_a, d_g)
         smax = 0.0
         amax = 0.0
         for j in range(n):
@@ -280,7 +282,7 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
         if r < 0:
             lam[i] = -d[i] * r
         jar[i] = r
-    if nc:
+    if cones is not None:
         cone_forces(cones, jar, d, lam)
     return a, aq, lam, it
 

@@ -159,13 +159,17 @@ class ContactStep:
         # (not views into an array of structs, as data.contact's are, whose layout changes
         # with their count), so their types are the data's (and so are those of rows made
         # from them, tree_rows.solvable_rows); the contacts' for cones, contiguous copies.
-        cones = self.cone_contacts(data)
-        return self._contact_step.keyed((data, data if self.elliptic else cones) + rest,
-                                        (self.rows(data) if efc is None else efc, cones) + rest)
+        rows = self.rows(data) if efc is None else efc
+        if self.elliptic:
+            return self._contact_step.keyed((data, data) + rest, (rows, self.cone_contacts(data)) + rest)
+        return self._contact_step.keyed((data, None) + rest, (rows, None) + rest)
 
-    def cone_contacts(self, data: mujoco.MjData) -> ConeContacts:
-        """MuJoCo's contacts as the stage reads them for elliptic cones (none without)."""
-        if not self.elliptic or not data.ncon:
+    def cone_contacts(self, data: mujoco.MjData) -> ConeContacts | None:
+        """MuJoCo's contacts as the stage reads them for elliptic cones (None in a model
+        without them)."""
+        if not self.elliptic:
+            return None
+        if not data.ncon:
             return self._no_cone_contacts
         con = data.contact
         return ConeContacts(_ELLIPTIC, data.efc_id, np.ascontiguousarray(con.efc_address),
@@ -237,8 +241,9 @@ class ContactStep:
             weights = _k.row_weights(ext.system, rows.rows, no_coupling, rows.jq, lu, piv, rows.ratio,
                                      np.zeros(0, dtype=np.int64))
             cone_weights(weights, rows.cones)
+            cones = rows.cones if len(rows.cones.dim) else None  # (None: compiled without cones)
             a, a_q, lam, _ = newton(ext.system, start, rows.rows, rows.aref, weights,
-                                    Border(no_coupling, metric, rows.jq, a_q), rows.cones, MAX_ITER, TOL)
+                                    Border(no_coupling, metric, rows.jq, a_q), cones, MAX_ITER, TOL)
         row_forces_into(rows, lam, self.force, efc.force)
         if solvable is not None:
             solvable.finish(data)

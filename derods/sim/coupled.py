@@ -198,7 +198,8 @@ class CoupledStep:
                 return a.copy(), f_q.copy(), None  # (the buffers are the next solve's)
             a, aq, lam, _ = self._keyed(self._newton, plain, (ext_sys.system, d, a, h_fq, h_qq, f_q),
                                         ext_sys.system, a, rows.rows, rows.aref, weights,
-                                        Border(h_fq, h_qq, rows.jq, f_q), rows.cones, MAX_ITER, TOL)
+                                        Border(h_fq, h_qq, rows.jq, f_q), rows.cones if len(rows.cones.dim) else None,
+                                        MAX_ITER, TOL)
             return a, aq, lam
 
         if not hl.turning:  # held points only translate: no arcs
