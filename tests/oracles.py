@@ -115,6 +115,19 @@ def inverse_diagonal_terms(system: ImplicitSystem) -> tuple[np.ndarray, list[tup
     return inverse_band(system.lt, system.lt.shape[1]), corrections
 
 
+def random_band(rng: np.random.Generator, m: int) -> np.ndarray:
+    """Lower band (9, m) of a random symmetric matrix made positive definite (the band of
+    a a^T, a with entries N(0, 0.3^2), plus 5 on the diagonal): a stiffness band for
+    tests of the solves (its Cholesky factor exists, its entries are all of one scale)."""
+    a = rng.normal(size=(m, m)) * 0.3
+    full = a @ a.T
+    band = np.zeros((9, m))
+    for d in range(9):
+        band[d, : m - d] = np.diag(full, -d)
+    band[0] += 5.0
+    return band
+
+
 # -- contact rows and their Newton solve (derods/sim/contact.py) -----------------------------
 
 @dataclass

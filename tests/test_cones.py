@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 import pytest
 import scipy.optimize
-from oracles import ContactRows, a_matvec, implicit_system
+from oracles import ContactRows, a_matvec, implicit_system, random_band
 
 import derods
 from derods import ContactParams, World, shapes
@@ -70,13 +70,7 @@ def test_newton_with_cones_finds_the_minimum(far):
     cones, and each zone occurs."""
     rng = np.random.default_rng(3)
     n = 18
-    full = rng.normal(size=(n, n)) * 0.3
-    full = full @ full.T
-    band = np.zeros((9, n))
-    for dd in range(9):
-        band[dd, :n - dd] = np.diag(full, -dd)
-    band[0] += 5.0
-    system = implicit_system(1e-2, np.array([0, n]), [band], [(rng.normal(size=n), 2.0)],
+    system = implicit_system(1e-2, np.array([0, n]), [random_band(rng, n)], [(rng.normal(size=n), 2.0)],
                              rng.uniform(0.5, 1.5, size=n), 0.3, 1e-3)
     dims = [3, 3, 4, 6]
     n_scalar = 5

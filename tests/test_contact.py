@@ -7,7 +7,7 @@ import mujoco
 import numpy as np
 import pytest
 import scipy.optimize
-from oracles import ContactRows, a_matvec, contact_solve, implicit_system
+from oracles import ContactRows, a_matvec, contact_solve, implicit_system, random_band
 
 import derods
 from derods import scenes, shapes
@@ -19,13 +19,7 @@ from derods._numba.contact_rows import FAR_DENSE_MAX
 
 def small_problem(rng, n_vertices=6, n_rows=7, n_far=0):
     n = 3 * n_vertices
-    k = np.zeros((9, n))
-    a = rng.normal(size=(n, n)) * 0.3
-    full = a @ a.T
-    for d in range(9):
-        k[d, : n - d] = np.diag(full, -d)
-    k[0] += 5.0  # keep the banded part positive definite
-    system = implicit_system(1e-2, np.array([0, n]), [k], [(rng.normal(size=n), 2.0)],
+    system = implicit_system(1e-2, np.array([0, n]), [random_band(rng, n)], [(rng.normal(size=n), 2.0)],
                              rng.uniform(0.5, 1.5, size=n), 0.3, 1e-3)
     col0 = rng.integers(0, n - 6, size=n_rows)
     jw = np.zeros((n_rows, 9))
@@ -100,15 +94,7 @@ def test_far_rows_weights_row_by_row_equal_the_dense_solves():
     sizes = (30, 24, 27)
     offsets = np.concatenate(([0], np.cumsum(sizes)))
     n = int(offsets[-1])
-    bands = []
-    for m in sizes:
-        a = rng.normal(size=(m, m)) * 0.3
-        full = a @ a.T
-        band = np.zeros((9, m))
-        for d in range(9):
-            band[d, : m - d] = np.diag(full, -d)
-        band[0] += 5.0
-        bands.append(band)
+    bands = [random_band(rng, m) for m in sizes]
     twist = [(rng.normal(size=sizes[0]), 2.0), None, (rng.normal(size=sizes[2]), 0.7)]
     system = implicit_system(1e-2, offsets, bands, twist, rng.uniform(0.5, 1.5, size=n), 0.3, 1e-3)
     n_far = FAR_DENSE_MAX + 20
