@@ -94,12 +94,15 @@ def virtual_rows(cones, jar, d, basis, wv):
     sum_q wv_q b_q b_q^T and its gradient sum_q wv_q (b_q . jar) b_q (module docstring).
     Writes basis and wv; returns whether any changed."""
     u = np.zeros(6)
+    nb_ = np.zeros((6, 6))
+    nw = np.zeros(6)
+    v = np.zeros(6)
     changed = False
     for c in range(len(cones.dim)):
         dim, mu = cones.dim[c], cones.mu[c]
         zone, n_, t_ = _split(cones, c, jar, u)
-        nb_ = np.zeros((6, 6))
-        nw = np.zeros(6)
+        nb_[:] = 0.0
+        nw[:] = 0.0
         if zone == 1:
             for j in range(dim):
                 nb_[j, j] = 1.0
@@ -115,7 +118,6 @@ def virtual_rows(cones, jar, d, basis, wv):
             # 1 .. dim - 2, then scaled by f into jar's space.
             curv = -dm * mu * (n_ - mu * t_) / t_
             q = 1
-            v = np.zeros(6)
             for e in range(1, dim):
                 if q == dim - 1:
                     break
@@ -220,8 +222,9 @@ def cone_forces(cones, jar, d, lam):
 
 
 @nb.njit(cache=True)
-def _line_terms(jar, jd, d, in_cone, cones, t):
-    """The rows' cost's first and second derivatives along jar + t jd."""
+def _line_terms(jar, jd, d, in_cone, cones, t, x, u, du):
+    """The rows' cost's first and second derivatives along jar + t jd (scratch: x (k,),
+    u, du (6,))."""
     fp, fpp = 0.0, 0.0
     for i in range(len(jar)):
         if in_cone[i]:
@@ -230,9 +233,6 @@ def _line_terms(jar, jd, d, in_cone, cones, t):
         if r < 0.0:
             fp += d[i] * r * jd[i]
             fpp += d[i] * jd[i] * jd[i]
-    u = np.zeros(6)
-    du = np.zeros(6)
-    x = np.zeros(len(jar))
     for c in range(len(cones.dim)):
         dim, mu = cones.dim[c], cones.mu[c]
         for j in range(dim):
@@ -268,8 +268,9 @@ def cone_line_search(jar, jd, d, in_cone, cones, d_a, d_g, max_iter=50):
     from t = 1, kept inside a bracket of its sign change by bisection."""
     lo, hi = 0.0, np.inf
     t = 1.0
+    x, u, du = np.empty(len(jar)), np.zeros(6), np.zeros(6)
     for _ in range(max_iter):
-        fp, fpp = _line_terms(jar, jd, d, in_cone, cones, t)
+        fp, fpp = _line_terms(jar, jd, d, in_cone, cones, t, x, u, du)
         fp += t * d_a + d_g
         fpp += d_a
         if fp > 0.0:
