@@ -5,8 +5,8 @@ numba compiles a kernel on its first call and caches the machine code on disk
 seconds of CPU), later runs load the cache in about a second. :func:`warm_up`
 makes each kernel's first call happen up front, on small worlds that exercise
 every path of the step (isotropic, anisotropic and curved rods, a twisted ring,
-clamps on a moving body, contact with an obstacle and with the rod itself,
-explicit and projection modes), so no simulation stalls in the middle when a
+clamps on a moving body, contact with an obstacle and with the rod itself, elliptic
+friction cones, explicit and projection modes), so no simulation stalls in the middle when a
 path is first taken (the first contact, say). :func:`prepare` says so when it
 takes long.
 """
@@ -69,6 +69,22 @@ def warm_up() -> None:
     held.add_rod(Rod(shapes.straight(0.3, 6, start=(0.0, 1.0, 0.5), direction=(0.0, 0.0, -1.0)), mat), "hanging",
                  start="clamp", start_body="warmup_arm")
     held.step(3)
+    # Elliptic friction cones (derods._numba.cones), anchored (static friction), in a rod's
+    # own block and in the border of a rod held by a body with dofs.
+    spec = mujoco.MjSpec.from_string(
+        '<mujoco><option cone="elliptic"/><worldbody><geom type="plane" size="2 2 0.1"/>'
+        '<body name="warmup_cart" pos="0 0 0.012"><joint type="slide" axis="1 0 0"/>'
+        '<geom type="box" size="0.01 0.01 0.01" contype="0" conaffinity="0"/></body></worldbody></mujoco>')
+    cones = World(spec, dt=1e-2, contact=ContactParams(static_friction=True))
+    cones.add_rod(Rod(shapes.straight(0.3, 6, start=(0.0, 0.0, 0.0099), direction=(-1.0, 0.0, 0.0)), mat),
+                  "dragged", start="pin", start_body="warmup_cart")
+    cones.step(3)
+    for friction in (False, True):
+        spec = mujoco.MjSpec.from_string('<mujoco><option cone="elliptic"/><worldbody>'
+                                         '<geom type="plane" size="2 2 0.1"/></worldbody></mujoco>')
+        cones = World(spec, dt=1e-2, contact=ContactParams(static_friction=friction))
+        cones.add_rod(Rod(shapes.straight(0.3, 6, start=(0.0, 0.5, 0.0099)), mat), "lying")
+        cones.step(3)
     for mode in ("explicit", "projection"):
         w = World(dt=1e-5 if mode == "explicit" else 1e-2, mode=mode)
         w.add_rod(Rod(shapes.cantilever(0.3, 6), mat), start="clamp")
