@@ -45,7 +45,8 @@ class Cones(NamedTuple):
 class ConeContacts(NamedTuple):
     """MuJoCo's contacts, as a contact stage finds its elliptic cones: elliptic, MuJoCo's
     constraint type of elliptic contact rows; efc_id (nefc,), each row's contact; per
-    contact (ncon) its first row adr, dim, mu and friction (ncon, 5). Empty arrays: no
+    contact (ncon) its first row adr, dim, mu, friction (ncon, 5) and dist [m] (MuJoCo's
+    signed distance: > 0 for a speculative contact, within a margin). Empty arrays: no
     contact this step. A model without elliptic cones passes None instead (compiled
     without them: five arrays less to hand over on every contact step)."""
 
@@ -55,6 +56,7 @@ class ConeContacts(NamedTuple):
     dim: np.ndarray
     mu: np.ndarray
     friction: np.ndarray
+    dist: np.ndarray
 
 
 @nb.njit(cache=True)
@@ -359,7 +361,10 @@ def cone_groups(efc_rows, efc_type, cone_contacts):
 def block_cones(efc, efc_rows, efc_type, group, cone_contacts):
     """The elliptic cones among a block's solved rows (:class:`derods._numba.cones.Cones`,
     rows in the solve's order): efc (k,), the solved rows' block numbers; efc_rows,
-    efc_type, group: as :func:`cone_groups`."""
+    efc_type, group: as :func:`cone_groups`. A speculative contact (within a margin, not
+    yet touching) gets no friction: its cone is its normal row alone, which only keeps the
+    rod from crossing the surface by the step's end (with its frictional rows it could
+    push and brake a rod sliding a hair above a floor)."""
     if cone_contacts is None:
         return Cones(group.reshape((0, 6)), group, np.zeros(0), np.zeros((0, 5)))
     if len(group) == 0:
@@ -384,7 +389,8 @@ def block_cones(efc, efc_rows, efc_type, group, cone_contacts):
         con = cone_contacts.efc_id[efc_rows[b]]
         dim[c] = cone_contacts.dim[con]
         mu[c] = cone_contacts.mu[con]
-        friction[c] = cone_contacts.friction[con]
+        if cone_contacts.dist[con] <= 0.0:  # touching; a speculative contact has no friction
+            friction[c] = cone_contacts.friction[con]
         for j in range(dim[c]):
             rows[c, j] = at[b + j]
         c += 1

@@ -124,7 +124,7 @@ class ContactStep:
         #: Elliptic cones: MuJoCo's contacts are read for them each step (else never).
         self.elliptic = model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
         none = np.zeros(0, dtype=np.int32)
-        self._no_cone_contacts = ConeContacts(_ELLIPTIC, none, none, none, np.zeros(0), np.zeros((0, 5)))
+        self._no_cone_contacts = ConeContacts(_ELLIPTIC, none, none, none, np.zeros(0), np.zeros((0, 5)), np.zeros(0))
         #: The body trees (MuJoCo tree ids) whose dofs joined the last step's solve.
         self.joined_trees = np.zeros(0, dtype=np.int64)
 
@@ -174,7 +174,7 @@ class ContactStep:
         con = data.contact
         return ConeContacts(_ELLIPTIC, data.efc_id, np.ascontiguousarray(con.efc_address),
                             np.ascontiguousarray(con.dim), np.ascontiguousarray(con.mu),
-                            np.ascontiguousarray(con.friction))
+                            np.ascontiguousarray(con.friction), np.ascontiguousarray(con.dist))
 
     def _tree_rows(self, data, trees) -> tuple[_k.Efc, SolvableRows | None]:
         """MuJoCo's rows with the equalities and joint limits among the joined ``trees``
