@@ -18,7 +18,8 @@ import numba as nb
 import numpy as np
 
 from .banded import inverse_band, solve_columns
-from .cones import block_cones, cone_groups, cone_weights, share_patterns
+from .cone_rows import block_cones, cone_groups, share_patterns
+from .cones import cone_weights
 from .contact_blocks import partition
 from .contact_newton import newton, no_border
 from .dense import inverse_quadratic_rows
@@ -156,10 +157,12 @@ def _far_diagonal(system, rows, zb, rod_of_dof, out):
 
 
 @nb.njit(cache=True)
-def row_weights(system, rows, y_border, jq, lu, piv, ratio, rod_of_dof):
+def row_weights(system, rows, y_border, jq, lu, piv, ratio, rod_of_dof, cones):
     """The rows' weights in the metric of the implicit step, MuJoCo's impedance kept: D_i =
     1 / (ratio_i diag(J H^-1 J^T)_i), 0 where that is not positive (a row nothing can
-    move); H the rods' A, bordered by m dofs (bodies holding rods, :mod:`derods.sim.coupled`;
+    move), an elliptic cone's frictional rows coupled to its normal row's as MuJoCo couples
+    them (cones: :class:`derods._numba.cones.Cones`, :func:`derods._numba.cones.cone_weights`);
+    H the rods' A, bordered by m dofs (bodies holding rods, :mod:`derods.sim.coupled`;
     m = 0 for none). diag(J H^-1 J^T) is the band's part
     (:func:`delassus_diagonal`) plus the border's, u S^-1 u^T with u = J_q - J_f y_border;
     y_border (n, m): A^-1 H_fq; jq (k, m): the rows' entries on the border; lu, piv: the
@@ -183,6 +186,7 @@ def row_weights(system, rows, y_border, jq, lu, piv, ratio, rod_of_dof):
         scaled = ratio[i] * diag[i]
         if scaled > 0.0:
             w[i] = 1.0 / scaled
+    cone_weights(w, cones)
     return w
 
 
@@ -191,7 +195,7 @@ def contact_step(efc, cone_contacts, supported_types, local_of_dof, dof_off, wid
                  max_iter, tol):
     """MuJoCo's constraint rows (``efc``, :class:`Efc`) on the rod dofs, re-solved in the
     implicit metric (``system``, A factored: :class:`derods._numba.implicit.System`);
-    cone_contacts (:class:`derods._numba.cones.ConeContacts`): MuJoCo's contacts, for the
+    cone_contacts (:class:`derods._numba.cone_rows.ConeContacts`): MuJoCo's contacts, for the
     elliptic cones among the rows (empty if there are none).
 
     Rods are independent in A (its band is block diagonal by rod), so the rows are
@@ -274,7 +278,7 @@ def solve_block(row, col, val, efc_data, cone_contacts, efc_rows, supported, loc
 
     1. Split the rows (:func:`split_rows`): derods solves the rows that touch only rod
        dofs and are of a supported type; the others keep MuJoCo's force (ext). An
-       elliptic contact's rows (cone_contacts: :class:`derods._numba.cones.ConeContacts`)
+       elliptic contact's rows (cone_contacts: :class:`derods._numba.cone_rows.ConeContacts`)
        are split as one, and solved as its cone (:mod:`derods._numba.cones`).
     2. Rescale the rows' weights D = 1 / R to the implicit metric, keeping MuJoCo's
        impedance: R = (R / diagA)_MuJoCo * diag(J A^-1 J^T); a cone's frictional rows
@@ -310,8 +314,7 @@ def solve_block(row, col, val, efc_data, cone_contacts, efc_rows, supported, loc
             aref[i] = efc_aref[efc[i]]
             r_over_diag[i] = efc_r[efc[i]] / efc_diag_a[efc[i]]
         d = row_weights(system, rows, np.zeros((n, 0)), np.zeros((len(efc), 0)), np.zeros((0, 0)),
-                        np.zeros(0, dtype=np.int64), r_over_diag, rod_of_dof)
-        cone_weights(d, cones)
+                        np.zeros(0, dtype=np.int64), r_over_diag, rod_of_dof, cones)
         if len(cones.dim):
             a, _, lam, _ = newton(system, a, rows, aref, d, no_border(n, len(efc)), cones, max_iter, tol)
         else:  # compiled without cones

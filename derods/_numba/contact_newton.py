@@ -48,8 +48,7 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
     accelerations, d (k,) their weights; cones: the elliptic friction cones among them
     (:class:`derods._numba.cones.Cones`, their rows' cost MuJoCo's elliptic one instead;
     None for none: compiled then without a trace of them), which enter the linear algebra
-    as virtual rows
-    (:func:`derods._numba.cones.virtual_rows`)."""
+    as virtual rows (:func:`derods._numba.cones.virtual_rows`)."""
     g, tw_lo, tw_hi, mass, a_band = system.g, system.tw_lo, system.tw_hi, system.mass, system.a_band
     s, m_coef = system.weights[1], system.weights[0]
     nc = 0 if cones is None else len(cones.dim)

@@ -19,7 +19,8 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from .cones import Cones, block_cones, cone_groups, share_patterns
+from .cone_rows import block_cones, cone_groups, share_patterns
+from .cones import Cones
 from .contact_rows import Rows, efc_triplets, split_bordered_rows, transpose_apply_all
 from .dense import lu_factor
 
@@ -51,7 +52,7 @@ def bordered_rows(efc, cone_contacts, supported_types, own, local_of_dof, border
     in one call: the supported types (supported_types), the rows ``own`` (nefc,) bool
     or empty that take no force at all (neither solved nor MuJoCo's: a held edge against
     its own holder), the far rows as CSR, an elliptic contact's rows as its cone
-    (cone_contacts: :class:`derods._numba.cones.ConeContacts`)
+    (cone_contacts: :class:`derods._numba.cone_rows.ConeContacts`)
     and the solved rows' aref and R / diagA. Returns a :class:`BorderedRows`."""
     nefc = efc.nefc
     row, col, val = efc_triplets(efc.is_sparse, nefc, efc.nv, efc.j, efc.rownnz, efc.rowadr, efc.colind)

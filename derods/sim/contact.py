@@ -50,7 +50,7 @@ import numpy as np
 from .._numba import contact as _k
 from .._numba.banded import cholesky_into
 from .._numba.calls import Bound
-from .._numba.cones import ConeContacts, cone_weights
+from .._numba.cone_rows import ConeContacts
 from .._numba.contact_newton import Border, newton
 from .._numba.contact_reference import Contacts, correct_aref
 from .._numba.contact_rows import efc_triplets
@@ -77,6 +77,12 @@ _KINDS = np.array([_FRICTIONLESS, _PYRAMIDAL, _ELLIPTIC])
 #: problem's force scale.
 MAX_ITER = 30
 TOL = 1e-10
+
+
+def cones_or_none(cones):
+    """The cones (:class:`derods._numba.cones.Cones`) as Newton takes them: None for none,
+    so that a solve without cones runs the code compiled without them."""
+    return cones if len(cones.dim) else None
 
 
 class ContactStep:
@@ -239,11 +245,10 @@ class ContactStep:
             lu_factor(lu, piv)  # the border's Schur complement: H_qq itself, H_fq being 0
             no_coupling = np.zeros((ext.n, k))
             weights = _k.row_weights(ext.system, rows.rows, no_coupling, rows.jq, lu, piv, rows.ratio,
-                                     np.zeros(0, dtype=np.int64))
-            cone_weights(weights, rows.cones)
-            cones = rows.cones if len(rows.cones.dim) else None  # (None: compiled without cones)
+                                     np.zeros(0, dtype=np.int64), rows.cones)
             a, a_q, lam, _ = newton(ext.system, start, rows.rows, rows.aref, weights,
-                                    Border(no_coupling, metric, rows.jq, a_q), cones, MAX_ITER, TOL)
+                                    Border(no_coupling, metric, rows.jq, a_q), cones_or_none(rows.cones), MAX_ITER,
+                                    TOL)
         row_forces_into(rows, lam, self.force, efc.force)
         if solvable is not None:
             solvable.finish(data)

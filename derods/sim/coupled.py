@@ -44,13 +44,12 @@ import numpy as np
 
 from .._numba import contact as _k
 from .._numba.calls import Bound
-from .._numba.cones import cone_weights
 from .._numba.contact_newton import Border, newton
 from .._numba.coupled import (BorderedRows, bordered_rows, force_into, holder_steps_into, moved_into,
                               row_forces_into, start_into)
 from .._numba.dense import lu_solve, spd_factor
 from .._numba.implicit import sm_solve_columns_into, sm_solve_into
-from .contact import MAX_ITER, SUPPORTED, TOL, WINDOW, ContactStep, WithTrees
+from .contact import MAX_ITER, SUPPORTED, TOL, WINDOW, ContactStep, WithTrees, cones_or_none
 from .holders import Holders
 from .layout import element_bodies
 
@@ -175,9 +174,8 @@ class CoupledStep:
                 big_y[:n, c] = y
             # MuJoCo's impedance kept in this metric (see the module docstring)
             weights = self._keyed(self._row_weights, plain, (ext_sys.system, d, y, lu, piv),
-                                  ext_sys.system, rows.rows, big_y, rows.jq, lu, piv, rows.ratio, self._no_rods)
-            if len(rows.cones.dim):
-                cone_weights(weights, rows.cones)
+                                  ext_sys.system, rows.rows, big_y, rows.jq, lu, piv, rows.ratio, self._no_rods,
+                                  rows.cones)
 
         def solve(arc=None):
             """a, a_q and the rows' multipliers (None: no rows) with the held points moved
@@ -198,8 +196,8 @@ class CoupledStep:
                 return a.copy(), f_q.copy(), None  # (the buffers are the next solve's)
             a, aq, lam, _ = self._keyed(self._newton, plain, (ext_sys.system, d, a, h_fq, h_qq, f_q),
                                         ext_sys.system, a, rows.rows, rows.aref, weights,
-                                        Border(h_fq, h_qq, rows.jq, f_q), rows.cones if len(rows.cones.dim) else None,
-                                        MAX_ITER, TOL)
+                                        Border(h_fq, h_qq, rows.jq, f_q), cones_or_none(rows.cones), MAX_ITER,
+                                        TOL)
             return a, aq, lam
 
         if not hl.turning:  # held points only translate: no arcs
