@@ -9,7 +9,7 @@ file, then os.replace) and prints, per scenario x holder, how many cases are ok 
 many, then every failure with its note. It measures: the exit code is 0 whatever it finds.
 
 Run: .venv/bin/python benchmarks/bench_held.py [--quick] [--workers N] [--out results.jsonl]
-     [--strain-limit inf] [--mode alpha]
+     [--strain-limit inf] [--mode alpha] [--bending angle] [--scenario span]
 """
 
 from __future__ import annotations
@@ -84,13 +84,18 @@ def main() -> int:
                     help="World's strain limit for every case (default: World's own; inf turns it off, to probe)")
     ap.add_argument("--mode", default="auto", choices=("auto", "implicit", "alpha", "projection"),
                     help="World's mode for every case (default auto: implicit here)")
+    ap.add_argument("--bending", default="tan", choices=("tan", "angle"),
+                    help="the rods' curvature measure for every case (default Bergou's tan)")
+    ap.add_argument("--scenario", default=None, help="only this scenario (default: all)")
     args = ap.parse_args()
     from tqdm import tqdm
 
     fields = {} if args.strain_limit is None else {"strain_limit": args.strain_limit}
     if args.mode != "auto":
         fields["mode"] = args.mode
-    cases = held.grid(quick=args.quick, **fields)
+    if args.bending != "tan":
+        fields["bending"] = args.bending
+    cases = [c for c in held.grid(quick=args.quick, **fields) if args.scenario in (None, c.scenario)]
     t0 = time.perf_counter()
     with tqdm(total=len(cases), desc="held rods", unit="case") as bar:
         if args.workers > 1:

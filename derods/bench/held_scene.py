@@ -46,7 +46,8 @@ class Case:
     strain_limit: World's (None: its default; a knob for probes); mode: World's ("auto" picks
     "implicit" here; "alpha", "projection" to cross the modes); collide: fall only, the
     box collides (MuJoCo's default contype); duration [s] (None: DURATION[scenario]);
-    friction: of the rod and the static geoms (None: the defaults, 1 for both)."""
+    friction: of the rod and the static geoms (None: the defaults, 1 for both); bending: the
+    rod's curvature measure (:class:`derods.rod.Rod`'s, "tan" or "angle")."""
 
     scenario: str
     holder: str
@@ -62,6 +63,7 @@ class Case:
     collide: bool = False
     duration: float | None = None
     friction: float | None = None
+    bending: str = "tan"
 
     def __post_init__(self):
         if self.holder not in SCENARIOS.get(self.scenario, ()):
@@ -117,10 +119,10 @@ def _world(case: Case, xml, x: np.ndarray, natural: bool = True, raised: float =
     x0 = x.copy()
     x0[:1 if case.end == "pin" else 2, 2] += raised
     if held_end:
-        world.add_rod(Rod(x, case.material, natural_curvature=natural), "rod", start="clamp", end=case.end,
+        world.add_rod(Rod(x, case.material, natural_curvature=natural, bending=case.bending), "rod", start="clamp", end=case.end,
                       end_body="holder")
     else:
-        world.add_rod(Rod(x, case.material, natural_curvature=natural), "rod", start=case.end, start_body="holder",
+        world.add_rod(Rod(x, case.material, natural_curvature=natural, bending=case.bending), "rod", start=case.end, start_body="holder",
                       x=x0 if raised else None)
     world.compile()
     return world, world.model.body("holder").id

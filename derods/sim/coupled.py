@@ -50,6 +50,7 @@ from .._numba.coupled import (BorderedRows, bordered_rows, force_into, holder_st
 from .._numba.dense import lu_solve, spd_factor
 from .._numba.implicit import sm_solve_columns_into, sm_solve_into
 from .contact import MAX_ITER, SUPPORTED, TOL, WINDOW, ContactStep, WithTrees, cones_or_none
+from .held_limit import pull_holders
 from .holders import Holders
 from .layout import element_bodies
 
@@ -78,6 +79,9 @@ class CoupledStep:
         self.border_of_dof[holders.tree] = np.arange(self.m)
         self.is_sparse = bool(mujoco.mj_isSparse(model))
         self.held_x = layout.x0.copy()
+        #: Each vertex's place among the held points (-1: none; derods.sim.held_limit).
+        self._held_index = np.full(len(layout.x0), -1, dtype=np.int64)
+        self._held_index[holders.held] = np.arange(len(holders.held))
         #: Whether a held edge collides with the body holding it (ContactParams.holder_contact);
         #: off, as MuJoCo does not collide a body with its parent or children.
         self.holder_contact = False
@@ -227,7 +231,7 @@ class CoupledStep:
         else:
             self.contact.force[:] = 0.0
         af = a[:n]
-        self._limit_strain(step, af, aq, stiff.jac)
+        self._limit_strain(step, af, aq, stiff.jac, metric)
         hl._dynamics.write(d, hl.tree, metric, aq)
         ext_sys.write(d, a[n:])
         return af
@@ -254,7 +258,7 @@ class CoupledStep:
             return bound.keyed(key, args)
         return bound.kernel(*args)
 
-    def _limit_strain(self, step, af: np.ndarray, aq: np.ndarray, jac: np.ndarray) -> None:
+    def _limit_strain(self, step, af: np.ndarray, aq: np.ndarray, jac: np.ndarray, metric: np.ndarray) -> None:
         """The strain limit (:data:`derods.sim.integrators.STRAIN_LIMIT`) on the coupled
         solution af (n,) [m/s^2] (changed in place), the vertices held by bodies with dofs
         predicted exactly where MuJoCo's integrator takes them with aq (m,) and kept
@@ -263,7 +267,10 @@ class CoupledStep:
         dt 1e-2 put its held point 0.6 mm off its arc, the rod's first edge 4.6 % too
         long, and the box diverged; moving the held points by their holders' inertia
         instead, without their contacts, did not help either.) jac (3H, k): the held
-        points' Jacobian: where no held point turns, they move by it exactly."""
+        points' Jacobian: where no held point turns, they move by it exactly; metric (m, m):
+        the holders' M - h D. A rod the held points leave out of reach is projected again
+        with them pulled (:func:`derods.sim.held_limit.pull_holders`), aq (changed in place)
+        with them."""
         hl = self.holders
         if not hl.turning and self._held_are_riding:
             holder_steps_into(step.qvel, hl.dofs, aq, hl._in_tree, step.h, self._dq)
@@ -272,7 +279,9 @@ class CoupledStep:
             self.held_x[:] = step.x
             if len(self._riding_vertex):
                 self._predict_held(step, aq)
-        step.n_projected = step._limit_strain(af, step._touching(), self.held_x)
+        step.n_projected, left = step._limit_strain(af, step._touching(), self.held_x)
+        if left:
+            step.n_projected += pull_holders(step, self.holders, self.held_x, self._held_index, af, aq, jac, metric)
 
     def _predict_held(self, step, aq: np.ndarray) -> None:
         """held_x of the vertices held by bodies with dofs: where MuJoCo's integrator takes

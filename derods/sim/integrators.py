@@ -299,7 +299,7 @@ class Implicit(Step):
         self.elastic()
         self.unconstrained()
         if not self.holders:
-            self.n_projected = self._limit_strain(self.a0)
+            self.n_projected = self._limit_strain(self.a0)[0]
         # With this force MuJoCo's unconstrained acceleration of the rod dofs is a0, so its
         # own constraint solve (for bodies the rods touch) sees the implicit motion.
         _io.write_applied(lay.dofs, lay.mass, self.a0, self.other, self.qfrc_applied)
@@ -321,7 +321,7 @@ class Implicit(Step):
             if a is not None:
                 # Contact impulses turn edges too: limit the strain they leave, moving only
                 # the vertices no contact pushes on.
-                self.n_projected += self._limit_strain(a, self._touching())
+                self.n_projected += self._limit_strain(a, self._touching())[0]
         if self.friction:
             self.friction.slipped(d)
         if a is not None or self.holders:
@@ -372,14 +372,14 @@ class Implicit(Step):
         return inv_mass
 
     def _limit_strain(self, a: np.ndarray, inv_mass: np.ndarray | None = None,
-                      held_x: np.ndarray | None = None) -> int:
+                      held_x: np.ndarray | None = None) -> tuple[int, int]:
         """Project the rods that ``a`` (local accelerations, changed in place) would strain
         beyond the strain limit back onto their rest lengths, moving vertices by
         ``inv_mass`` (n_vertices,) (default: their own), the held ones predicted at
-        ``held_x`` (n_vertices, 3) [m] (default: where they are); returns how many were (a
-        rod that cannot be, held taut between pins, keeps its step)."""
+        ``held_x`` (n_vertices, 3) [m] (default: where they are); returns how many were,
+        and how many could not be (held taut between pins: they keep their step)."""
         if not self.limited.any() or math.isinf(self.strain_limit):
-            return 0
+            return 0, 0
         held_x = self.x if held_x is None else held_x
         limited = self.limited if inv_mass is None else self._limited_rest
 
@@ -387,6 +387,7 @@ class Implicit(Step):
             return self._limit_kernel(self.x_start, self.rods.v_off, self.rods.e_off, self.rods.rest_len, weights,
                                       self.layout.place, self.v, a, self.h, limited, self.strain_limit,
                                       PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp, held_x)
+        n, left = 0, 0
         try:
             n, left = limit(self.inv_mass if inv_mass is None else inv_mass)
             if left and inv_mass is not None:
@@ -394,10 +395,11 @@ class Implicit(Step):
                 # to converge (a cable jerked along a floor by a mocap cart, 5 mm edges moved 6 mm
                 # a step: 55 iterations, 4 with its own masses): those rods are projected by their
                 # own masses instead, rather than kept strained (0.5 there, then stopped as diverged).
-                n += limit(self.inv_mass)[0]
+                more, left = limit(self.inv_mass)
+                n += more
         except ValueError as err:  # the projection's banded Cholesky, in a state gone wild
             self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)
-        return n
+        return n, left
 
     @property
     def contact_force(self) -> np.ndarray:

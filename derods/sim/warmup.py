@@ -69,6 +69,13 @@ def warm_up() -> None:
     held.add_rod(Rod(shapes.straight(0.3, 6, start=(0.0, 1.0, 0.5), direction=(0.0, 0.0, -1.0)), mat), "hanging",
                  start="clamp", start_body="warmup_arm")
     held.step(3)
+    # The strain limit's last resort for held rods (derods.sim.held_limit), which only a
+    # rod out of its holders' reach reaches: a 2-edge rod, its end held by a point of 1 kg.
+    from .._numba.held_projection import HeldPoints, limit_held
+    x = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.25, 0.0, 0.0]])
+    limit_held(x, np.array([0, 3]), np.array([0, 2]), np.full(2, 0.1), np.array([0.0, 1.0, 0.0]),
+               np.array([-1, 0, -1]), np.zeros(3), np.zeros(3), 1e-2, np.array([0]), 1e-3, 1e-10, 5,
+               np.zeros_like(x), x, HeldPoints(np.array([-1, -1, 0]), np.eye(3), np.zeros(3)))
     # Elliptic friction cones (derods._numba.cones), anchored (static friction), in a rod's
     # own block and in the border of a rod held by a body with dofs.
     spec = mujoco.MjSpec.from_string(
