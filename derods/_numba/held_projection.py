@@ -29,7 +29,7 @@ import numba as nb
 import numpy as np
 
 from .banded import cholesky_ok, solve_into
-from .projection import landing_into, predict_held
+from .projection import first_order_lengths, landing_into, predict_held
 
 #: Halvings of a projection step before the projection stops where it is.
 LINE_SEARCH_HALVINGS = 30
@@ -188,11 +188,7 @@ def limit_held(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, rods, limit
             worst = max(worst, abs(np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) / rest_len[e0 + j] - 1.0))
         if worst <= limit:
             continue
-        target = rest_len[e0:e0 + v1 - v0 - 1].copy()
-        for j in range(v1 - v0 - 1):
-            c = x[v0 + j + 1] - x[v0 + j]
-            d = xp[v0 + j + 1] - xp[v0 + j]
-            target[j] = max(target[j], (c[0] * d[0] + c[1] * d[1] + c[2] * d[2]) / np.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]))
+        target = np.maximum(rest_len[e0:e0 + v1 - v0 - 1], first_order_lengths(x, xp, v0, v1 - 1))
         left = max(left, project_held_rod(xp[v0:v1], inv_mass[v0:v1], points.index[v0:v1], points.w, points.y,
                                           target, tol, max_iter))
         n_projected += 1

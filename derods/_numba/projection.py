@@ -180,11 +180,7 @@ def limit_rods(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, li
             d2 = xp[v0 + j + 1, 2] - xp[v0 + j, 2]
             length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
             worst = max(worst, abs(length / rest_len[e0 + j] - 1.0))
-            # the predicted edge along the edge now: the length the linearized step meant
-            c0 = x[v0 + j + 1, 0] - x[v0 + j, 0]
-            c1 = x[v0 + j + 1, 1] - x[v0 + j, 1]
-            c2 = x[v0 + j + 1, 2] - x[v0 + j, 2]
-            target[j] = (c0 * d0 + c1 * d1 + c2 * d2) / np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+            target[j] = first_order_length(x, xp, v0 + j)
             turned = max(turned, (length - target[j]) / rest_len[e0 + j])
             first = max(first, abs(target[j] / rest_len[e0 + j] - 1.0))
         if worst > limit or (limited[i] == 2 and first > limit):
@@ -197,6 +193,24 @@ def limit_rods(x, v_off, e_off, rest_len, inv_mass, place, v, a0, h, limited, li
         n_projected += 1
         landing_into(x, xp, place, v, h, v0, v1, a0)
     return n_projected, n_left
+
+
+@nb.njit(cache=True, inline="always")
+def first_order_length(x, xp, j):
+    """The length [m] the linearized step gave edge (j, j + 1): its predicted edge (xp
+    (n_vertices, 3)) along the edge now (x)."""
+    c0, c1, c2 = x[j + 1, 0] - x[j, 0], x[j + 1, 1] - x[j, 1], x[j + 1, 2] - x[j, 2]
+    d0, d1, d2 = xp[j + 1, 0] - xp[j, 0], xp[j + 1, 1] - xp[j, 1], xp[j + 1, 2] - xp[j, 2]
+    return (c0 * d0 + c1 * d1 + c2 * d2) / np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+
+
+@nb.njit(cache=True)
+def first_order_lengths(x, xp, lo, hi):
+    """:func:`first_order_length` of edges lo .. hi - 1, shape (hi - lo,) [m]."""
+    out = np.empty(hi - lo)
+    for j in range(lo, hi):
+        out[j - lo] = first_order_length(x, xp, j)
+    return out
 
 
 @nb.njit(cache=True)

@@ -79,9 +79,6 @@ class CoupledStep:
         self.border_of_dof[holders.tree] = np.arange(self.m)
         self.is_sparse = bool(mujoco.mj_isSparse(model))
         self.held_x = layout.x0.copy()
-        #: Each vertex's place among the held points (-1: none; derods.sim.held_limit).
-        self._held_index = np.full(len(layout.x0), -1, dtype=np.int64)
-        self._held_index[holders.held] = np.arange(len(holders.held))
         #: Whether a held edge collides with the body holding it (ContactParams.holder_contact);
         #: off, as MuJoCo does not collide a body with its parent or children.
         self.holder_contact = False
@@ -281,7 +278,7 @@ class CoupledStep:
                 self._predict_held(step, aq)
         step.n_projected, left = step._limit_strain(af, step._touching(), self.held_x)
         if left:
-            step.n_projected += pull_holders(step, self.holders, self.held_x, self._held_index, af, aq, jac, metric)
+            step.n_projected += pull_holders(step, self.holders, self.held_x, af, aq, jac, metric)
 
     def _predict_held(self, step, aq: np.ndarray) -> None:
         """held_x of the vertices held by bodies with dofs: where MuJoCo's integrator takes
