@@ -86,6 +86,8 @@ def main() -> int:
                     help="World's mode for every case (default auto: implicit here)")
     ap.add_argument("--bending", default="tan", choices=("tan", "angle"),
                     help="the rods' curvature measure for every case (default Bergou's tan)")
+    ap.add_argument("--speculative", action="store_true",
+                    help="contact margins sized by each rod's speed every step (ContactParams(speculative=True))")
     ap.add_argument("--scenario", default=None, help="only this scenario (default: all)")
     args = ap.parse_args()
     from tqdm import tqdm
@@ -95,6 +97,8 @@ def main() -> int:
         fields["mode"] = args.mode
     if args.bending != "tan":
         fields["bending"] = args.bending
+    if args.speculative:
+        fields["speculative"] = True
     cases = [c for c in held.grid(quick=args.quick, **fields) if args.scenario in (None, c.scenario)]
     t0 = time.perf_counter()
     with tqdm(total=len(cases), desc="held rods", unit="case") as bar:

@@ -331,7 +331,7 @@ def contact_params(c) -> None:
     k = integer("condim", c.condim)
     if k not in CONDIMS:
         refuse("condim", f"one of {CONDIMS} (1 frictionless, 3 sliding, 4 torsional, 6 rolling)", c.condim)
-    for key in ("self_collision", "rod_rod", "holder_contact", "static_friction"):
+    for key in ("self_collision", "rod_rod", "holder_contact", "static_friction", "speculative"):
         boolean(key, getattr(c, key))
     real("margin", c.margin, "m", ge=0, example=0.0)
     integer("priority", c.priority)

@@ -25,9 +25,40 @@ class Contacts(NamedTuple):
     efc_address: np.ndarray
 
 
+class Jacobian(NamedTuple):
+    """MuJoCo's constraint Jacobian efc_J, sparse (CSR: rownnz, rowadr and the values) or
+    dense (nefc x nv, row-major); rownnz, rowadr are empty for a dense one."""
+
+    values: np.ndarray
+    rownnz: np.ndarray
+    rowadr: np.ndarray
+    sparse: bool
+    nv: int
+
+
+@nb.njit(cache=True)
+def _normal_rows(jac, efc_vel, adr, n_rows, vel):
+    """A pyramidal contact's rows n + mu_k c_k, n - mu_k c_k (from adr, n_rows of them)
+    all made its normal n, each pair's mean, in jac's values; vel (n_rows,): their
+    velocities J qdot made the normal's too."""
+    for k in range(n_rows // 2):
+        r0, r1 = adr + 2 * k, adr + 2 * k + 1
+        if jac.sparse:  # the rows of one contact share their columns (MuJoCo's chain)
+            a0, a1, count = jac.rowadr[r0], jac.rowadr[r1], jac.rownnz[r0]
+        else:
+            a0, a1, count = r0 * jac.nv, r1 * jac.nv, jac.nv
+        for i in range(count):
+            mean = 0.5 * (jac.values[a0 + i] + jac.values[a1 + i])
+            jac.values[a0 + i] = mean
+            jac.values[a1 + i] = mean
+        mean = 0.5 * (efc_vel[r0] + efc_vel[r1])
+        vel[2 * k] = mean
+        vel[2 * k + 1] = mean
+
+
 @nb.njit(cache=True)
 def correct_aref(contacts, geom_body, moving, body_vel, xpos, efc_type, efc_pos, efc_margin, efc_vel, efc_kbip,
-                 efc_aref, h, kinds):
+                 efc_aref, h, kinds, jac):
     """Correct MuJoCo's contact rows' reference accelerations for what derods solves.
 
     1. Bodies that move without dofs (mocap bodies): MuJoCo's row i has
@@ -42,6 +73,11 @@ def correct_aref(contacts, geom_body, moving, body_vel, xpos, efc_type, efc_pos,
        its velocity enters v_i only where it approaches (keeping clear of its next pose),
        never to allow the rod closer than its surface now;
        a touching one is MuJoCo's soft row without the margin, -B_i v_i - K_i I_i d.
+       A speculative pyramidal contact carries no friction, as an elliptic one (whose
+       cone is its normal row alone then, :mod:`derods._numba.cones`): its rows
+       n +- mu c, each kept from crossing, would brake a rod sliding a hair above a
+       surface (v_n h + d >= mu |v_t| h); they are made its normal row n, in MuJoCo's
+       Jacobian ``jac`` (:class:`Jacobian`) itself, which the solve reads next.
     Pyramidal, frictionless and elliptic rows (an elliptic contact's frictional rows have
     no margin of their own: they take the motion, its normal row the margin). contacts:
     MuJoCo's (:class:`Contacts`); efc_*: its rows' arrays; h: step [s]; kinds (3,):
@@ -51,6 +87,7 @@ def correct_aref(contacts, geom_body, moving, body_vel, xpos, efc_type, efc_pos,
     ncon, con_geom, con_pos, con_frame = contacts.count, contacts.geom, contacts.pos, contacts.frame
     con_dim, con_friction, con_efc = contacts.dim, contacts.friction, contacts.efc_address
     rel = np.empty(6)
+    normal_vel = np.empty(12)
     for c in range(ncon):
         adr = con_efc[c]
         if adr < 0:
@@ -88,17 +125,20 @@ def correct_aref(contacts, geom_body, moving, body_vel, xpos, efc_type, efc_pos,
                 rel[3 + k] += sign * (f0 * wx + f1 * wy + f2 * wz)
         if not touched and efc_margin[adr] <= 0.0:
             continue
+        normal = t == pyramidal and efc_margin[adr] > 0.0 and efc_pos[adr] >= 0.0
+        if normal:
+            _normal_rows(jac, efc_vel, adr, n_rows, normal_vel)
         for q in range(n_rows):
             r = adr + q
             w = rel[0]
             if t == elliptic:
                 w = rel[q]  # normal, slide along t1, t2, spin about n, roll about t1, t2
-            elif t == pyramidal:
+            elif t == pyramidal and not normal:
                 # rows n + mu_k c_k, n - mu_k c_k; c: slide along t1, t2, spin about n, roll about t1, t2
                 k = q // 2
                 mu = con_friction[c, k]
                 w += mu * rel[1 + k] if q % 2 == 0 else -mu * rel[1 + k]
-            vel = efc_vel[r] + w
+            vel = (normal_vel[q] if normal else efc_vel[r]) + w
             if efc_margin[r] > 0.0:
                 d = efc_pos[r]
                 if d >= 0.0:

@@ -47,7 +47,8 @@ class Case:
     "implicit" here; "alpha", "projection" to cross the modes); collide: fall only, the
     box collides (MuJoCo's default contype); duration [s] (None: DURATION[scenario]);
     friction: of the rod and the static geoms (None: the defaults, 1 for both); bending: the
-    rod's curvature measure (:class:`derods.rod.Rod`'s, "tan" or "angle")."""
+    rod's curvature measure (:class:`derods.rod.Rod`'s, "tan" or "angle"); speculative: the
+    rods' :class:`~derods.sim.world.ContactParams` ``speculative`` (margins sized by speed)."""
 
     scenario: str
     holder: str
@@ -64,6 +65,7 @@ class Case:
     duration: float | None = None
     friction: float | None = None
     bending: str = "tan"
+    speculative: bool = False
 
     def __post_init__(self):
         if self.holder not in SCENARIOS.get(self.scenario, ()):
@@ -107,9 +109,9 @@ def _world(case: Case, xml, x: np.ndarray, natural: bool = True, raised: float =
     ``held_end``, held by "holder" at its end and clamped to the world at its start."""
     body, act = (xml, "") if isinstance(xml, str) else xml
     spec = mujoco.MjSpec.from_string(f"<mujoco><worldbody>{body}</worldbody>{act}</mujoco>")
-    contact = ContactParams()
+    contact = ContactParams(speculative=case.speculative)
     if case.friction is not None:
-        contact = ContactParams(friction=case.friction)
+        contact = ContactParams(friction=case.friction, speculative=case.speculative)
         for g in spec.geoms:
             g.friction = [case.friction, g.friction[1], g.friction[2]]
     # The cables start SINK into what they lie on, and over the ledge as chords that cut its

@@ -27,6 +27,7 @@ from .exclusion import Exclusions, SelfReach, self_reach
 from .integrators import Explicit, Implicit, Projection
 from .layout import PROGRESS_FROM, Layout, RodEntry, add_to_spec
 from .scene_checks import fall_step, starts_inside, stretched_words, thin_geoms
+from .speculative import SpeedMargin
 
 #: The step of each mode but "auto" (which picks one of them).
 STEPS = {"explicit": Explicit, "implicit": Implicit, "projection": Projection, "alpha": GeneralizedAlpha}
@@ -126,6 +127,16 @@ def make_step(mode: str, model, data, layout, entries, rods, fr, ends, mass_damp
         step.coupled.holder_contact = contact.holder_contact
     if getattr(step, "friction", None) is not None and not contact.static_friction:
         step.friction.enabled = False
+    if contact.speculative:
+        if staged:
+            flexes = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_FLEX, e.name) for e in entries]
+            rod_of_place = np.searchsorted(layout.v_off, layout.free_vertex, side="right") - 1
+            step.speculative = SpeedMargin(model, flexes, rod_of_place, contact.margin)
+            step.reference.margin = True
+        else:
+            warnings.warn(f"mode {mode!r} steps with mj_step, whose solver reads a contact margin as a skin to rest "
+                          "on: speculative contacts are left out; mode 'implicit' (the default) or 'alpha' take "
+                          "them", validation.SceneWarning, stacklevel=4)
     return step
 
 

@@ -52,7 +52,7 @@ from .._numba.banded import cholesky_into
 from .._numba.calls import Bound
 from .._numba.cone_rows import ConeContacts
 from .._numba.contact_newton import Border, newton
-from .._numba.contact_reference import Contacts, correct_aref
+from .._numba.contact_reference import Contacts, Jacobian, correct_aref
 from .._numba.contact_rows import efc_triplets
 from .._numba.coupled import bordered_rows, row_forces_into
 from .._numba.dense import lu_factor
@@ -333,6 +333,8 @@ class ReferenceCorrection:
         self.margin = margin
         self.h = float(model.opt.timestep)
         self.geom_body = np.ascontiguousarray(model.geom_bodyid, dtype=np.int64)
+        self.is_sparse = bool(mujoco.mj_isSparse(model))
+        self.model_nv = int(model.nv)
         self._dq = np.zeros(4)
         self._w = np.zeros(3)
 
@@ -359,5 +361,6 @@ class ReferenceCorrection:
             return
         con = data.contact
         contacts = Contacts(data.ncon, con.geom, con.pos, con.frame, con.dim, con.friction, con.efc_address)
+        jac = Jacobian(data.efc_J, data.efc_J_rownnz, data.efc_J_rowadr, self.is_sparse, self.model_nv)
         correct_aref(contacts, self.geom_body, self.moving, self.vel, data.xpos, data.efc_type, data.efc_pos,
-                     data.efc_margin, data.efc_vel, data.efc_KBIP, data.efc_aref, self.h, _KINDS)
+                     data.efc_margin, data.efc_vel, data.efc_KBIP, data.efc_aref, self.h, _KINDS, jac)

@@ -266,6 +266,8 @@ class Implicit(Step):
         rod_flex = [mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_FLEX, e.name) for e in self.entries]
         margin = bool(np.any(self.model.flex_margin[rod_flex] > 0))
         self.reference = ReferenceCorrection(self.model, self.data, margin)
+        #: Margins sized by the rods' speed each step (derods.sim.speculative), if asked for.
+        self.speculative = None
         self.friction = StaticFriction(self.model)
         self.euler = self.model.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
         # Whether MuJoCo's integrator takes qacc from the forces again: the implicit ones
@@ -305,6 +307,8 @@ class Implicit(Step):
         _io.write_applied(lay.dofs, lay.mass, self.a0, self.other, self.qfrc_applied)
         mujoco.mj_checkPos(m, d)
         mujoco.mj_checkVel(m, d)
+        if self.speculative is not None:
+            self.speculative.update(self.v, self.a0)
         if self.reference:
             self.reference.update(d)
         self.forward(d)
