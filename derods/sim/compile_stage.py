@@ -24,8 +24,9 @@ from ..step import Frames, RodSet
 from .alpha_step import GeneralizedAlpha
 from .clamps import end_bodies
 from .exclusion import Exclusions, SelfReach, self_reach
-from .integrators import Explicit, Implicit, Projection
+from .integrators import Explicit, Implicit
 from .layout import PROGRESS_FROM, Layout, RodEntry, add_to_spec
+from .projection_step import Projection
 from .scene_checks import fall_step, starts_inside, stretched_words, thin_geoms
 from .speculative import SpeedMargin
 

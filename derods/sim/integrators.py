@@ -1,5 +1,6 @@
-"""One step of a world, per mode: explicit, implicit with contact, projection (the alpha
-mode, built on the implicit one, is :mod:`derods.sim.alpha_step`).
+"""One step of a world, per mode: explicit and implicit with contact (the alpha and
+projection modes, built on the implicit one, are :mod:`derods.sim.alpha_step` and
+:mod:`derods.sim.projection_step`).
 
 Every mode runs the same first half (:meth:`Step.elastic`), each quantity
 computed once, for all rods at once:
@@ -14,8 +15,7 @@ computed once, for all rods at once:
 Then the mode's own half: the explicit step applies the elastic force; the
 implicit step solves the linearly implicit system (:mod:`derods.sim.implicit`),
 lets MuJoCo's forward pass find the contacts, re-solves them in the implicit
-metric (:mod:`derods.sim.contact`) and lets MuJoCo integrate; the projection
-step projects the implicit prediction onto inextensible edges. Last, the
+metric (:mod:`derods.sim.contact`) and lets MuJoCo integrate. Last, the
 divergence check (:mod:`derods.sim.divergence`).
 """
 
@@ -30,7 +30,7 @@ from .._numba import coupling as _io
 from .._numba import implicit as _imp
 from .._numba import parallel
 from .._numba import step as _rods
-from .._numba.projection import limit_chunk, limit_strain, projection_step, touching_into
+from .._numba.projection import limit_chunk, limit_strain, touching_into
 from ..step import EndBodies, Frames, RodSet, Terms, evaluate
 from .clamps import Reactions
 from .contact import SUPPORTED, ContactStep, ReferenceCorrection
@@ -412,38 +412,3 @@ class Implicit(Step):
     def contact_force(self) -> np.ndarray:
         return self.contact.force
 
-
-class Projection(Implicit):
-    """The DER paper's method: implicit bending and twisting, inextensibility by fast
-    projection (:mod:`derods.sim.projection`); MuJoCo resolves contacts with the bare
-    vertex masses, as in the explicit mode. Where bodies with dofs hold rods, the step is
-    the implicit mode's one solve of rods, holders and contacts (:mod:`derods.sim.coupled`)
-    with every open rod projected onto its rest lengths after it (a strain limit of 0):
-    applied one step late, the rods' reaction made a light holder diverge."""
-
-    mode = "projection"
-
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        lay = self.layout
-        self._accel = np.zeros(lay.n)
-        if self.holders:
-            self.limited = np.array([not e.rod.closed for e in self.entries], dtype=np.int8)
-            self.strain_limit = 0.0
-
-    def step(self) -> None:
-        if self.holders:
-            Implicit.step(self)
-            return
-        lay = self.layout
-        self.elastic()
-        self.unconstrained()
-        bad = projection_step(self.x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, self.inv_mass,
-                              lay.place, self.v, self.a0, self.h, PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp,
-                              self._accel)
-        if bad >= 0:
-            self.diagnosis.projection(bad, PROJECTION_MAX_ITER, self.n_steps, self.data.time)
-        _io.write_applied(lay.dofs, lay.mass, self._accel, self.other, self.qfrc_applied)
-        mujoco.mj_step(self.model, self.data)
-        self.n_steps += 1
-        self.check()
