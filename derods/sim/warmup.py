@@ -63,7 +63,8 @@ def warm_up() -> None:
         '<geom type="box" size="0.01 0.01 0.01" contype="0" conaffinity="0"/></body>'
         '<body name="warmup_arm" pos="0 1 0.5"><joint type="hinge" axis="0 1 0" pos="0 0 0.1"/>'
         '<geom type="sphere" size="0.01" contype="0" conaffinity="0"/></body></worldbody></mujoco>')
-    held = World(spec, dt=1e-2)
+    # (with speculative contacts: the reference correction and its pyramids made normal rows)
+    held = World(spec, dt=1e-2, contact=ContactParams(speculative=True))
     held.add_rod(Rod(shapes.straight(0.3, 6, start=(0.0, 0.0, 0.0099), direction=(-1.0, 0.0, 0.0)), mat), "dragged",
                  start="pin", start_body="warmup_cart")
     held.add_rod(Rod(shapes.straight(0.3, 6, start=(0.0, 1.0, 0.5), direction=(0.0, 0.0, -1.0)), mat), "hanging",
