@@ -98,13 +98,13 @@ def test_speculative_contacts_leave_a_slow_landing_alone_within_its_resting_dept
 
 @pytest.mark.parametrize("case", [
     held.Case("drag", "mocap", mass=1.0, end="pin", dt=1e-2, young=1e10, n_edges=100),
-    held.Case("drag", "slide", mass=10.0, end="pin", dt=1e-2),
+    held.Case("drag", "slide", mass=0.1, end="pin", dt=1e-2),
     held.Case("edge", "slide", mass=1.0, end="clamp", dt=1e-2),
     held.Case("edge", "mocap", mass=1.0, end="pin", dt=1e-2),
-], ids=["stiff-cable-whipped-by-a-mocap-cart", "drag-slide-10kg", "edge-slide-1kg-clamp", "edge-mocap-pin"])
+], ids=["stiff-cable-whipped-by-a-mocap-cart", "drag-slide-0.1kg", "edge-slide-1kg-clamp", "edge-mocap-pin"])
 def test_the_held_sweeps_contact_dips_at_a_large_step_are_gone(case):
     """Four of the held sweep's cases that dip through their surface at dt 1e-2 at defaults
-    (a vertex centre more than r inside: 41, 4.2, 29 and 6.8 mm measured; discrete
+    (a vertex centre more than r inside: 41, 5.1, 14 and 6.8 mm measured; discrete
     detection), with speculative contacts: right by the sweep's own criterion (no centre
     more than r inside during the run, every one more than r / 2 out at its end, the tail
     following the cart). The whole sweep: benchmarks/bench_held.py --speculative."""

@@ -1,19 +1,23 @@
-"""The strain limit of rods held by bodies with dofs where the held points are out of
-reach: the holders pulled as a rope pulls what it holds.
+"""The strain limit of rods held by bodies with dofs, where the holders must move with it:
+held points out of the rod's reach (the holders pulled as a rope pulls what it holds,
+:func:`pull_holders`), and turning edges of rods held at one end (:func:`turn_held`).
 
 The coupled step (:mod:`derods.sim.coupled`) projects a held rod whose predicted strain
 exceeds the strain limit with its held points where MuJoCo's integrator takes their
 bodies. Where the step takes them apart beyond the rod's reach, no such projection
 exists, and the rod kept its step (a 10 kg box swinging on a rod clamped to the world
-at dt 1e-2: 62 % strain at one edge, then divergence). Here the holders give way.
+at dt 1e-2: 62 % strain at one edge, then divergence). Here the holders give way. And
+the lengthening a linearized step leaves in a turning edge, which the rods held by the
+world or mocap bodies lose every step, is taken out of rods held at one end with their
+holders moving too.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .._numba.held_projection import HeldPoints, limit_held
-from .._numba.projection import first_order_lengths, predict_held
+from .._numba.held_projection import HeldPoints, limit_held, project_held_rod
+from .._numba.projection import TURNED_TOL, first_order_lengths, landing_into, predict_held
 from .projection import PROJECTION_MAX_ITER, PROJECTION_TOL
 
 
@@ -37,10 +41,7 @@ def pull_holders(step, holders, held_x: np.ndarray, af: np.ndarray, aq: np.ndarr
     projected; af (n,) changed for them. held_x (n_vertices, 3) [m]: where the held
     vertices go this step (moved with the pull)."""
     hl, lay, r = holders, step.layout, step.rods
-    lever = np.linalg.solve(metric, np.eye(len(metric))[:, hl._in_tree]) @ jac.T  # M^-1 J^T, (m, 3H)
-    w = jac @ lever[hl._in_tree]
-    index = np.full(len(held_x), -1, dtype=np.int64)  # each vertex's place among the held points
-    index[hl.held] = np.arange(len(hl.held))
+    lever, w, index = _held_points(holders, jac, metric, len(held_x))
     rods = np.unique(hl.rod_of_held)
     rods = rods[step.limited[rods] > 0]
     pulled = _pull_taut(step, hl, rods, held_x, index, af, aq, lever, w)
@@ -55,6 +56,16 @@ def pull_holders(step, holders, held_x: np.ndarray, af: np.ndarray, aq: np.ndarr
     if more:
         aq -= lever @ points.y / (step.h * step.h)
     return n + more
+
+
+def _held_points(holders, jac: np.ndarray, metric: np.ndarray, n_vertices: int) -> tuple[np.ndarray, ...]:
+    """How the held points move when pulled: lever (m, 3H) = M^-1 J^T (metric (m, m): the
+    holders' M - h D; jac (3H, k): the held points' Jacobian), W (3H, 3H) = J M^-1 J^T
+    [1/kg], and each vertex's place among the held points (n_vertices,), -1 for none."""
+    lever = np.linalg.solve(metric, np.eye(len(metric))[:, holders._in_tree]) @ jac.T
+    index = np.full(n_vertices, -1, dtype=np.int64)
+    index[holders.held] = np.arange(len(holders.held))
+    return lever, jac @ lever[holders._in_tree], index
 
 
 def _pull_taut(step, holders, rods: np.ndarray, held_x: np.ndarray, index: np.ndarray, af: np.ndarray,
@@ -100,3 +111,80 @@ def _pull_taut(step, holders, rods: np.ndarray, held_x: np.ndarray, index: np.nd
         aq -= lever @ (pull * y) / (step.h * step.h)
         pulled[rod] = 1
     return pulled
+
+
+def hanging_rods(layout, holders) -> np.ndarray:
+    """The open rods held by bodies with dofs at one end only, the other end free (int64):
+    those :func:`turn_held` projects."""
+    out = []
+    for rod in np.unique(holders.rod_of_held):
+        v0, v1 = layout.v_off[rod], layout.v_off[rod + 1]
+        start, end = layout.place[v0] < 0, layout.place[v1 - 1] < 0
+        if start != end:
+            out.append(rod)
+    return np.array(out, dtype=np.int64)
+
+
+def turn_held(step, holders, rods: np.ndarray, held_x: np.ndarray, af: np.ndarray, aq: np.ndarray,
+              jac: np.ndarray, metric: np.ndarray) -> int:
+    """The projection of turning edges (as the rods' own strain limit's, mode 2:
+    :func:`derods._numba.projection.limit_strain`) for rods held by bodies with dofs at one
+    end (``rods``), with their held points moving by the holders' inverse inertia W and the
+    holders' step with them (aq (m,) -= M^-1 J^T y / h^2, as :func:`pull_holders`), in steps
+    without contact rows. A rod whose predicted edges are longer than their rest or
+    first-order lengths (whichever is longer) by TURNED_TOL is projected onto those (onto
+    its rest lengths if strained beyond the strain limit): not onto shorter first-order
+    lengths, as the rods' own limit is, since a clamp's held point moves on its arc and
+    leaves its first edge a first-order length of l cos(phi) (projected onto it, the edge
+    was compressed 8e-4 every other step and a 0.1 kg clamping arm gained 2.4 times the
+    energy its swing releases).
+
+    The linearized step leaves an edge turned by phi 1 / cos(phi) too long and the next step
+    reads that as tension, up to k_s times the strain limit (280 N on a 3 mm inextensible
+    rod). Rods held by the world or by mocap bodies have their turning edges brought to
+    their first-order lengths each step; held by bodies with dofs, projected with the held
+    points fixed, that broke momentum (a free rod pinned to a free body: 0.42 m/s) and made
+    clamping bodies gain energy. Moving the held points by W keeps the momentum exchange.
+    Without it, a 1 g arm (a tenth of its rod) swinging a 0.4 m rod at dt 1e-2 stopped and
+    moved on alternate steps (the spurious tension entering its lever stiffness) and gained
+    0.42 (pin) and 1.08 (clamp) of the energy the swing releases. Only one-end rods and
+    contact-free steps: the projection knows neither the rods' nor the holders' contacts
+    (with a rod held at both ends a light free B_last was pressed into the floor), and a
+    rod held at both ends has the holders' pull. af (n,), aq (m,) changed in place;
+    held_x (n_vertices, 3) [m] moved with the held points. Returns how many rods were
+    projected."""
+    hl, lay, r, h = holders, step.layout, step.rods, step.h
+    lever, w, index = _held_points(holders, jac, metric, len(held_x))
+    w = 0.5 * (w + w.T)
+    x = step.x_start
+    xp = np.empty_like(x)
+    predict_held(x, lay.place, step.v, af, h, held_x, xp)
+    y, pull = np.zeros(3 * len(hl.held)), np.zeros(3 * len(hl.held))
+    n = 0
+    for rod in rods:
+        if step.limited[rod] == 0:
+            continue
+        v0, v1, e0 = r.v_off[rod], r.v_off[rod + 1], r.e_off[rod]
+        rest = r.rest_len[e0:e0 + v1 - v0 - 1]
+        length = np.linalg.norm(np.diff(xp[v0:v1], axis=0), axis=1)
+        first = first_order_lengths(x, xp, v0, v1 - 1)
+        if np.max(np.abs(length / rest - 1.0)) > step.strain_limit or np.max(np.abs(first / rest - 1.0)) > \
+                step.strain_limit:
+            target = rest.copy()
+        elif np.max((length - np.maximum(first, rest)) / rest) > TURNED_TOL:
+            target = np.maximum(first, rest)
+        else:
+            continue
+        shape = xp[v0:v1].copy()
+        pull[:] = 0.0
+        if project_held_rod(shape, step.inv_mass[v0:v1], index[v0:v1], w, pull, target, PROJECTION_TOL,
+                            PROJECTION_MAX_ITER) > PROJECTION_TOL:
+            continue  # no shape: the rod keeps its step
+        y += pull
+        xp[v0:v1] = shape
+        landing_into(x, xp, lay.place, step.v, h, v0, v1, af)
+        n += 1
+    if n:
+        aq -= lever @ y / (h * h)
+        held_x[hl.held] -= (w @ y).reshape(-1, 3)
+    return n
