@@ -180,37 +180,3 @@ def test_a_cable_on_a_moving_mocap_platform_rides_it(cone):
         world.step()
     ridden = (world.positions().mean(axis=0)[0] - before[0]) / (100 * 2e-3)
     assert ridden == pytest.approx(speed, rel=0.01)
-
-
-def test_a_speculative_cone_carries_no_friction():
-    """A rod sliding at 1 m/s 0.1 mm above an elliptic floor, without gravity, inside a 3 mm
-    contact margin: its contacts are speculative (rows before touching) and only keep it
-    from crossing the surface, so it slides on unbraked and at its height (to 1e-6 over
-    0.1 s). With the cone's frictional rows in play the cone's middle zone pushed it off the
-    floor, out of its margin (a force with no contact); on the floor itself it is braked
-    (friction 0.5)."""
-    def slide(height):
-        spec = mujoco.MjSpec()
-        spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
-        floor = spec.worldbody.add_geom()
-        floor.type = mujoco.mjtGeom.mjGEOM_PLANE
-        floor.size = [5.0, 5.0, 0.1]
-        world = World(spec, dt=2e-3, gravity=(0.0, 0.0, 0.0), contact=ContactParams(friction=0.5, margin=3e-3))
-        r = 3e-3
-        world.add_rod(derods.Rod(shapes.straight(0.3, 30, start=(0.0, 0.0, r + height)),
-                                 derods.Material(young=1e7, radius=r, density=1000.0)))
-        world.compile()
-        v = np.zeros_like(world.velocities())
-        v[:, 0] = 1.0
-        world.set_velocities(0, v)
-        world.step()
-        contacts = world.data.ncon
-        world.step(49)
-        return float(world.velocities()[:, 0].mean()), contacts, float(world.positions()[:, 2].mean()) - r
-
-    hovering, contacts, height = slide(1e-4)
-    assert contacts > 0  # speculative contacts, from the first step
-    assert hovering == pytest.approx(1.0, abs=1e-6)
-    assert height == pytest.approx(1e-4, abs=1e-6)  # not pushed off either
-    touching, _, _ = slide(-1e-4)
-    assert touching < 0.99
