@@ -39,7 +39,8 @@ def pull_holders(step, holders, held_x: np.ndarray, af: np.ndarray, aq: np.ndarr
     projection with W crept: the rod nearly straight and 28000 times lighter than its
     box, 50 steps moved the box 9 um of the 0.15 mm needed). Returns how many rods were
     projected; af (n,) changed for them. held_x (n_vertices, 3) [m]: where the held
-    vertices go this step (moved with the pull)."""
+    vertices go this step (moved with the pull, as :func:`turn_held`, which reads it next,
+    predicts them)."""
     hl, lay, r = holders, step.layout, step.rods
     lever, w, index = _held_points(holders, jac, metric, len(held_x))
     rods = np.unique(hl.rod_of_held)
@@ -55,6 +56,7 @@ def pull_holders(step, holders, held_x: np.ndarray, af: np.ndarray, aq: np.ndarr
                          rods, step.strain_limit, PROJECTION_TOL, PROJECTION_MAX_ITER, step._xp, held_x, points)
     if more:
         aq -= lever @ points.y / (step.h * step.h)
+        held_x[hl.held] -= (points.w @ points.y).reshape(-1, 3)
     return n + more
 
 
@@ -168,11 +170,12 @@ def turn_held(step, holders, rods: np.ndarray, held_x: np.ndarray, af: np.ndarra
         rest = r.rest_len[e0:e0 + v1 - v0 - 1]
         length = np.linalg.norm(np.diff(xp[v0:v1], axis=0), axis=1)
         first = first_order_lengths(x, xp, v0, v1 - 1)
+        longer = np.maximum(first, rest)
         if np.max(np.abs(length / rest - 1.0)) > step.strain_limit or np.max(np.abs(first / rest - 1.0)) > \
                 step.strain_limit:
             target = rest.copy()
-        elif np.max((length - np.maximum(first, rest)) / rest) > TURNED_TOL:
-            target = np.maximum(first, rest)
+        elif np.max((length - longer) / rest) > TURNED_TOL:
+            target = longer
         else:
             continue
         shape = xp[v0:v1].copy()
