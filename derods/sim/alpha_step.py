@@ -95,17 +95,7 @@ class GeneralizedAlpha(Implicit):
             return self._limit_kernel(x, self.rods.v_off, self.rods.e_off, self.rods.rest_len, weights,
                                       self.layout.place, self._zero, self._shift, 1.0, self.limited,
                                       self.strain_limit, PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp, x)
-        n = 0
-        try:
-            n, left = limit(inv_mass)
-            if left and inv_mass is not self.inv_mass:
-                # As the implicit mode's (Implicit._limit_strain): touching vertices 100x lighter
-                # can leave the projection too ill-conditioned to converge (a cable drawn over a
-                # ledge's edge by a mocap cart at dt 1e-2: never projected, 17 % strain at the
-                # edge, diverged at step 9); those rods are projected by their own masses.
-                n += limit(self.inv_mass)[0]
-        except ValueError as err:  # the projection's banded Cholesky, in a state gone wild
-            self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)
+        n = self._projected(limit, inv_mass)[0]
         if n:
             lay = self.layout
             qpos = (lay.qpos_adr[:, None] + np.arange(3)).ravel()

@@ -130,9 +130,8 @@ def make_step(mode: str, model, data, layout, entries, rods, fr, ends, mass_damp
         step.friction.enabled = False
     if contact.speculative:
         if staged:
-            flexes = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_FLEX, e.name) for e in entries]
             rod_of_place = np.searchsorted(layout.v_off, layout.free_vertex, side="right") - 1
-            step.speculative = SpeedMargin(model, flexes, rod_of_place, contact.margin)
+            step.speculative = SpeedMargin(model, step.rod_flex, rod_of_place, contact.margin)
             step.reference.margin = True
         else:
             warnings.warn(f"mode {mode!r} steps with mj_step, whose solver reads a contact margin as a skin to rest "

@@ -266,8 +266,10 @@ class Implicit(Step):
         solved = self.layout.local_of_dof >= 0
         solved[self.holders.tree] = True
         self.forward = Forward(self.model, solved, SUPPORTED)
-        rod_flex = [mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_FLEX, e.name) for e in self.entries]
-        margin = bool(np.any(self.model.flex_margin[rod_flex] > 0))
+        #: Each rod's flex (its contact settings in MuJoCo's model), shape (n_rods,).
+        self.rod_flex = np.array([mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_FLEX, e.name)
+                                  for e in self.entries], dtype=np.int64)
+        margin = bool(np.any(self.model.flex_margin[self.rod_flex] > 0))
         self.reference = ReferenceCorrection(self.model, self.data, margin)
         #: Margins sized by the rods' speed each step (derods.sim.speculative), if asked for.
         self.speculative = None
@@ -394,14 +396,21 @@ class Implicit(Step):
             return self._limit_kernel(self.x_start, self.rods.v_off, self.rods.e_off, self.rods.rest_len, weights,
                                       self.layout.place, self.v, a, self.h, limited, self.strain_limit,
                                       PROJECTION_TOL, PROJECTION_MAX_ITER, self._xp, held_x)
+        return self._projected(limit, self.inv_mass if inv_mass is None else inv_mass)
+
+    def _projected(self, limit, weights: np.ndarray) -> tuple[int, int]:
+        """``limit(weights)`` (a call of the strain limit's kernel with vertex weights
+        (n_vertices,): (rods projected, rods left)), and the rods it left again by the
+        vertices' own masses where ``weights`` are not those. Touching vertices made 100x
+        lighter can leave the projection too ill-conditioned to converge (a cable jerked along
+        a floor by a mocap cart, 5 mm edges moved 6 mm a step: 55 iterations, 4 with its own
+        masses; a cable drawn over a ledge's edge in the alpha mode: never projected, 17 %
+        strain, diverged at step 9): those rods are projected by their own masses instead,
+        rather than kept strained."""
         n, left = 0, 0
         try:
-            n, left = limit(self.inv_mass if inv_mass is None else inv_mass)
-            if left and inv_mass is not None:
-                # Touching vertices made 100x lighter can leave the projection too ill-conditioned
-                # to converge (a cable jerked along a floor by a mocap cart, 5 mm edges moved 6 mm
-                # a step: 55 iterations, 4 with its own masses): those rods are projected by their
-                # own masses instead, rather than kept strained (0.5 there, then stopped as diverged).
+            n, left = limit(weights)
+            if left and weights is not self.inv_mass:
                 more, left = limit(self.inv_mass)
                 n += more
         except ValueError as err:  # the projection's banded Cholesky, in a state gone wild
