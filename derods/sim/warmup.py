@@ -57,16 +57,17 @@ def warm_up() -> None:
     world.contact_force("lying")
     # Rods held by bodies with dofs (derods.sim.coupled): a slide cart holding a rod that
     # lies on the floor (the bordered contact solve) and a hinged arm (arcs, differences).
+    floor = '<geom type="plane" size="2 2 0.1"/>'
+    cart = ('<body name="warmup_cart" pos="0 0 0.012"><joint type="slide" axis="1 0 0"/>'
+            '<geom type="box" size="0.01 0.01 0.01" contype="0" conaffinity="0"/></body>')
+    dragged = shapes.straight(0.3, 6, start=(0.0, 0.0, 0.0099), direction=(-1.0, 0.0, 0.0))
     spec = mujoco.MjSpec.from_string(
-        '<mujoco><worldbody><geom type="plane" size="2 2 0.1"/>'
-        '<body name="warmup_cart" pos="0 0 0.012"><joint type="slide" axis="1 0 0"/>'
-        '<geom type="box" size="0.01 0.01 0.01" contype="0" conaffinity="0"/></body>'
+        f'<mujoco><worldbody>{floor}{cart}'
         '<body name="warmup_arm" pos="0 1 0.5"><joint type="hinge" axis="0 1 0" pos="0 0 0.1"/>'
         '<geom type="sphere" size="0.01" contype="0" conaffinity="0"/></body></worldbody></mujoco>')
     # (with speculative contacts: the reference correction and its pyramids made normal rows)
     held = World(spec, dt=1e-2, contact=ContactParams(speculative=True))
-    held.add_rod(Rod(shapes.straight(0.3, 6, start=(0.0, 0.0, 0.0099), direction=(-1.0, 0.0, 0.0)), mat), "dragged",
-                 start="pin", start_body="warmup_cart")
+    held.add_rod(Rod(dragged, mat), "dragged", start="pin", start_body="warmup_cart")
     held.add_rod(Rod(shapes.straight(0.3, 6, start=(0.0, 1.0, 0.5), direction=(0.0, 0.0, -1.0)), mat), "hanging",
                  start="clamp", start_body="warmup_arm")
     held.step(3)
@@ -79,17 +80,12 @@ def warm_up() -> None:
                np.zeros_like(x), x, HeldPoints(np.array([-1, -1, 0]), np.eye(3), np.zeros(3)))
     # Elliptic friction cones (derods._numba.cones), anchored (static friction), in a rod's
     # own block and in the border of a rod held by a body with dofs.
-    spec = mujoco.MjSpec.from_string(
-        '<mujoco><option cone="elliptic"/><worldbody><geom type="plane" size="2 2 0.1"/>'
-        '<body name="warmup_cart" pos="0 0 0.012"><joint type="slide" axis="1 0 0"/>'
-        '<geom type="box" size="0.01 0.01 0.01" contype="0" conaffinity="0"/></body></worldbody></mujoco>')
+    spec = mujoco.MjSpec.from_string(f'<mujoco><option cone="elliptic"/><worldbody>{floor}{cart}</worldbody></mujoco>')
     cones = World(spec, dt=1e-2, contact=ContactParams(static_friction=True))
-    cones.add_rod(Rod(shapes.straight(0.3, 6, start=(0.0, 0.0, 0.0099), direction=(-1.0, 0.0, 0.0)), mat),
-                  "dragged", start="pin", start_body="warmup_cart")
+    cones.add_rod(Rod(dragged, mat), "dragged", start="pin", start_body="warmup_cart")
     cones.step(3)
     for friction in (False, True):
-        spec = mujoco.MjSpec.from_string('<mujoco><option cone="elliptic"/><worldbody>'
-                                         '<geom type="plane" size="2 2 0.1"/></worldbody></mujoco>')
+        spec = mujoco.MjSpec.from_string(f'<mujoco><option cone="elliptic"/><worldbody>{floor}</worldbody></mujoco>')
         cones = World(spec, dt=1e-2, contact=ContactParams(static_friction=friction))
         cones.add_rod(Rod(shapes.straight(0.3, 6, start=(0.0, 0.5, 0.0099)), mat), "lying")
         cones.step(3)
