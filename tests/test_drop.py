@@ -15,7 +15,7 @@ import pytest
 
 from derods import scenes
 from derods.apps import drop
-from derods.sim import integrators
+from derods.sim import strain_limit
 from derods.viz import output, render
 from derods import DivergenceError
 from derods.__main__ import main
@@ -194,7 +194,7 @@ def test_still_must_not_replace_the_video(tmp_path, capsys):
 def test_a_diverged_run_is_one_line_and_leaves_no_video(tmp_path, capsys, monkeypatch):
     """dt = 0.05 s without the implicit step's strain limit: the rods stretch past 50 % on
     impact; the DivergenceError's message (step, rod, fix) is the one line, exit 2, no file."""
-    monkeypatch.setattr(integrators, "STRAIN_LIMIT", math.inf)
+    monkeypatch.setattr(strain_limit, "STRAIN_LIMIT", math.inf)
     assert main(["drop", "--out", str(tmp_path / "x.mp4"), "--dt", "0.05", "--fps", "20", "--seconds", "1",
                  "--width", "320", "--height", "180", "--quiet"]) == 2
     err = capsys.readouterr().err.strip()

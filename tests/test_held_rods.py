@@ -321,7 +321,7 @@ def test_held_rods_in_the_projection_mode_are_stable_and_right(case):
 def test_a_jointed_holder_under_a_moving_mocap_base_is_stable(end):
     """A 50 g arm on a hinge whose parent is a mocap base (a hand on a robot moved by the
     user), holding a 0.5 m rod, the base moved 1 cm sinusoidally, dt = 1e-2: stable for 1 s
-    and the rod's edges within the strain limit (1e-3, integrators.STRAIN_LIMIT). It
+    and the rod's edges within the strain limit (1e-3, strain_limit.STRAIN_LIMIT). It
     diverged at step 46 (pin) and 52 (clamp) while the turning holder's differenced K_qq
     could make the holders' Schur complement softer than the arm (holders.no_softer)."""
     spec = mujoco.MjSpec.from_string(

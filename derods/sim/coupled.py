@@ -256,7 +256,7 @@ class CoupledStep:
 
     def _limit_strain(self, step, af: np.ndarray, aq: np.ndarray, jac: np.ndarray, metric: np.ndarray,
                       contact_free: bool) -> None:
-        """The strain limit (:data:`derods.sim.integrators.STRAIN_LIMIT`) on the coupled
+        """The strain limit (:data:`derods.sim.strain_limit.STRAIN_LIMIT`) on the coupled
         solution af (n,) [m/s^2] (changed in place), the vertices held by bodies with dofs
         predicted exactly where MuJoCo's integrator takes them with aq (m,) and kept
         there: the projection moves the free vertices only, as for rods held by the

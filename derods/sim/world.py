@@ -73,7 +73,7 @@ class World:
     strain_limit: the implicit mode's strain limit [relative edge strain]: an open
         rod of the default stretch stiffness whose step would strain an edge beyond it
         is projected back onto its rest lengths (see
-        :data:`derods.sim.integrators.STRAIN_LIMIT`, the default, 1e-3); ``math.inf``
+        :data:`derods.sim.strain_limit.STRAIN_LIMIT`, the default, 1e-3); ``math.inf``
         turns it off.
     rods_from: which rods a scene file declares are derods': "composite" (default: MuJoCo
         3.x cable composites, ``<composite type="cable">``) or "flexcomp" (1D flexcomps too);
