@@ -33,6 +33,36 @@ def test_every_subpackage_is_listed_in_pyproject():
     assert found | {"derods.mjcf"} == listed
 
 
+#: The code's size limits (issue 25): a module one person can hold in mind, and a compiled
+#: boundary of named bundles rather than walls of positional arrays.
+MAX_MODULE_LINES = 450
+MAX_KERNEL_PARAMETERS = 16
+
+
+def test_no_module_is_longer_than_one_person_can_hold():
+    """No module of derods/ over MAX_MODULE_LINES lines: split it by concern instead."""
+    long = {str(p.relative_to(ROOT)): n for p in (ROOT / "derods").rglob("*.py")
+            if (n := len(p.read_text().splitlines())) > MAX_MODULE_LINES}
+    assert long == {}, f"modules over {MAX_MODULE_LINES} lines: {long}"
+
+
+def test_no_compiled_kernel_takes_more_than_a_few_bundles():
+    """No numba kernel (a function decorated with njit or jit) takes more than
+    MAX_KERNEL_PARAMETERS parameters: pass namedtuples of arrays (derods/_numba/*: Efc,
+    Contacts, ...) instead."""
+    import ast
+    kernels, wide = 0, {}
+    for p in (ROOT / "derods").rglob("*.py"):
+        for node in ast.walk(ast.parse(p.read_text())):
+            if isinstance(node, ast.FunctionDef) and any("jit" in ast.unparse(d) for d in node.decorator_list):
+                kernels += 1
+                n = len(node.args.posonlyargs) + len(node.args.args) + len(node.args.kwonlyargs)
+                if n > MAX_KERNEL_PARAMETERS:
+                    wide[f"{p.relative_to(ROOT)}:{node.name}"] = n
+    assert kernels > 50, f"found only {kernels} kernels: the search no longer sees them"
+    assert wide == {}, f"kernels over {MAX_KERNEL_PARAMETERS} parameters: {wide}"
+
+
 @pytest.mark.skipif(not (os.environ.get("CI") or os.environ.get("DERODS_TEST_WHEEL")),
                     reason="builds a wheel and a fresh venv from the package registry (minutes); runs in CI "
                            "(CI=true) or with DERODS_TEST_WHEEL=1")
