@@ -41,19 +41,21 @@ def test_a_rod_falls_with_its_light_holder_in_every_mode(mode, end):
     assert r["values"]["relative_motion"] < 1e-4 * held.LENGTH["fall"], r["note"]
 
 
-def _dragged_cable(dt: float, mu_floor: float, mu_rod: float, speed: float, cone: str = "pyramidal"):
+def _dragged_cable(dt: float, mu_floor: float, mu_rod: float, speed: float, cone: str = "pyramidal",
+                   speculative: bool = False):
     """A 0.5 m cable (32 edges, E = 1e7) lying on a floor along -x, its start pinned 1 mm
     above the floor (so the held vertex touches nothing) to a 1 kg cart on an undamped,
     frictionless slide along x, driven by a stiff position servo (kp 1e4 N/m, kv 200 N s/m)
-    whose target moves at ``speed`` [m/s] from t = 0; MuJoCo's friction ``cone``.
-    Returns (world, rod)."""
+    whose target moves at ``speed`` [m/s] from t = 0; MuJoCo's friction ``cone``; the rods'
+    ``ContactParams.speculative``. Returns (world, rod)."""
     z = RADIUS + 1e-3
     xml = f"""<mujoco><option cone="{cone}"/><worldbody>
       <geom name="floor" type="plane" size="3 3 0.1" friction="{mu_floor} 0.005 0.0001" condim="3"/>
       <body name="cart" pos="0 0 {z}"><joint name="x" type="slide" axis="1 0 0"/>
         <geom type="box" size="0.01 0.01 0.01" mass="1" contype="0" conaffinity="0"/></body>
     </worldbody><actuator><position name="servo" joint="x" kp="1e4" kv="200" ctrlrange="-5 5"/></actuator></mujoco>"""
-    world = World(mujoco.MjSpec.from_string(xml), dt=dt, contact=ContactParams(friction=mu_rod, condim=3))
+    world = World(mujoco.MjSpec.from_string(xml), dt=dt,
+                  contact=ContactParams(friction=mu_rod, condim=3, speculative=speculative))
     x = shapes.straight(0.5, 32, start=(0.0, 0.0, RADIUS), direction=(-1.0, 0.0, 0.0))
     x0 = x.copy()
     x0[0, 2] = z
@@ -63,8 +65,20 @@ def _dragged_cable(dt: float, mu_floor: float, mu_rod: float, speed: float, cone
     return world, world.rods[0]
 
 
+#: Speculative contacts (ContactParams(speculative=True)) fail the closed form: their rows
+#: hold a resting vertex a hair above the floor (measured: 75 % of the contacts at
+#: 0 < dist < 47 um, the step's margin 52-58 um) and a contact not yet touching carries no
+#: friction, so the servo pulls 0.76 (pyramidal) and 0.79 (elliptic) of mu lambda L g.
+#: Counting contacts within 1.5 g h^2 as touching gave 0.994 at dt 1e-3, but at dt 1e-2
+#: (1.5 mm) it braked cables hovering above the floor (the held sweep's drag cases at dt
+#: 1e-2: tails 0.03-0.15 m of 0.3, 3 unstable): not kept. Strict, so a fix shows.
+SPECULATIVE_FRICTION = pytest.mark.xfail(strict=True, reason="speculative contacts lose friction at rest")
+
+
+@pytest.mark.parametrize("speculative", [False, pytest.param(True, marks=SPECULATIVE_FRICTION)],
+                         ids=["discrete", "speculative"])
 @pytest.mark.parametrize("cone", ["pyramidal", "elliptic"])
-def test_the_servo_dragging_a_cable_feels_kinetic_friction(cone):
+def test_the_servo_dragging_a_cable_feels_kinetic_friction(cone, speculative):
     """The cart drags the cable at 0.2 m/s; from 0.7 s (past the start transient) to 1.5 s
     the servo's force (data.actuator_force) equals mu * lambda * L * g within 3 %, mu the
     contact's friction (MuJoCo takes the larger of the geom's 0.3 and the rod's 0.5: checked
@@ -77,7 +91,7 @@ def test_the_servo_dragging_a_cable_feels_kinetic_friction(cone):
     MuJoCo's). The 3 %: the normal load fluctuates step to step as the sliding cable hops,
     averaged over 800 steps."""
     dt, speed = 1e-3, 0.2
-    world, rod = _dragged_cable(dt, 0.3, 0.5, speed, cone)
+    world, rod = _dragged_cable(dt, 0.3, 0.5, speed, cone, speculative)
     d = world.data
     free_weight = float(rod.vertex_mass[1:].sum()) * 9.81
     force, load, mu = [], [], set()

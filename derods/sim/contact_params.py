@@ -36,8 +36,11 @@ class ContactParams:
     vertex's travel in the step (1.5 |v| dt, :mod:`derods.sim.speculative`; never below
     ``margin``), so a rod is found before it goes in however fast it moves (a stiff cable
     whipping down at 4.5 m/s at dt 1e-2 went 41 mm into a floor without it); off by
-    default: it changes every landing, and rows are made for every surface a fast rod
-    nears (the implicit and alpha modes; the others warn and leave it out). holder_contact: a held edge collides with the body (with dofs)
+    default: it changes every landing, rows are made for every surface a fast rod nears,
+    and a resting rod's rows hold it a hair above the surface with no friction (a contact
+    not yet touching carries none): a cable dragged along a floor feels 0.76 (pyramidal)
+    to 0.79 (elliptic) of Coulomb's kinetic friction (tests/test_held_rods.py), so not for
+    grips or drags (the implicit and alpha modes; the others warn and leave it out). holder_contact: a held edge collides with the body (with dofs)
     that holds it; off by default, as MuJoCo never collides a body with its parent
     or children. static_friction: a rod's contacts that have rested a few steps are
     anchored where they began (:mod:`derods.sim.friction`), so that below the Coulomb
