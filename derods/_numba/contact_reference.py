@@ -36,6 +36,16 @@ class Jacobian(NamedTuple):
     nv: int
 
 
+#: A speculative contact approached by at most this many times its sink depth in a step
+#: settles in by the sink (resting, sliding, a hop's landing); a faster one is stopped at the
+#: surface (:func:`correct_aref`). Let a fast one sink too, a cable landing at 1.8 m/s on a
+#: heap arrived inside the cables below with its speed, their rows no longer speculative,
+#: and pushed them 7 mm into the floor (16 cables, dt 1/120 s, margin r); 1 sink: a hopping
+#: cable's landings were stopped a hair above the floor, without friction for a step (a
+#: dragged cable felt 0.970 of Coulomb's friction, 0.992 at 3).
+SETTLING = 3.0
+
+
 @nb.njit(cache=True)
 def _normal_rows(jac, efc_vel, adr, n_rows, vel):
     """A pyramidal contact's rows n + mu_k c_k, n - mu_k c_k (from adr, n_rows of them)
@@ -58,7 +68,7 @@ def _normal_rows(jac, efc_vel, adr, n_rows, vel):
 
 @nb.njit(cache=True)
 def correct_aref(contacts, geom_body, moving, body_vel, xpos, efc_type, efc_pos, efc_margin, efc_vel, efc_kbip,
-                 efc_aref, h, kinds, jac):
+                 efc_aref, h, kinds, jac, sink):
     """Correct MuJoCo's contact rows' reference accelerations for what derods solves.
 
     1. Bodies that move without dofs (mocap bodies): MuJoCo's row i has
@@ -69,6 +79,11 @@ def correct_aref(contacts, geom_body, moving, body_vel, xpos, efc_type, efc_pos,
     2. Speculative rows (a margin > 0, see :class:`derods.sim.contact_params.ContactParams`):
        a row not yet touching (distance d >= 0) only keeps the end-of-step position
        from crossing the surface, d + h (v_i + h a_i) >= 0, so aref_i = -(d / h + v_i) / h;
+       if its contact is approached slowly (by at most :data:`SETTLING` ``sink`` [m] in the
+       step), deeper than ``sink`` (a resting vertex's fall in a step,
+       :func:`derods.sim.speculative.sink_depth`), aref_i = -((d + sink) / h + v_i) / h: a rod
+       resting or sliding on a surface ends the step touching it, with friction from the
+       next (held a hair above it, a dragged cable felt 0.76 of Coulomb's friction);
        a moving body is already posed for the end of the step when MuJoCo measures d, so
        its velocity enters v_i only where it approaches (keeping clear of its next pose),
        never to allow the rod closer than its surface now;
@@ -126,6 +141,10 @@ def correct_aref(contacts, geom_body, moving, body_vel, xpos, efc_type, efc_pos,
         if not touched and efc_margin[adr] <= 0.0:
             continue
         normal = t == pyramidal and efc_margin[adr] > 0.0 and efc_pos[adr] >= 0.0
+        # A speculative contact approached slowly (by at most SETTLING sink in the step at its
+        # normal velocity, a moving body's counted where it approaches) may be crossed by sink.
+        vn = (0.5 * (efc_vel[adr] + efc_vel[adr + 1]) if t == pyramidal else efc_vel[adr]) + min(rel[0], 0.0)
+        allow = sink if -vn * h <= SETTLING * sink else 0.0
         if normal:
             _normal_rows(jac, efc_vel, adr, n_rows, normal_vel)
         for q in range(n_rows):
@@ -146,7 +165,7 @@ def correct_aref(contacts, geom_body, moving, body_vel, xpos, efc_type, efc_pos,
                     # only counts where it comes closer (the next pose), never as room.
                     if rel[0] > 0.0:
                         vel -= rel[0]
-                    efc_aref[r] = -(d / h + vel) / h
+                    efc_aref[r] = -((d + allow) / h + vel) / h
                 else:
                     efc_aref[r] = -efc_kbip[r, 1] * vel - efc_kbip[r, 0] * efc_kbip[r, 2] * d
             else:

@@ -60,6 +60,7 @@ from .._numba.implicit import sm_solve_into
 from .._numba.solved_rows import rows_touch_rods
 from ..stencil import XX_BANDWIDTH
 from .implicit import ImplicitSystem
+from .speculative import sink_depth
 from .tree_rows import SolvableRows, solvable_rows
 from .trees import TreeDynamics, tree_dofs
 
@@ -332,6 +333,7 @@ class ReferenceCorrection:
         self.any_moving = False
         self.margin = margin
         self.h = float(model.opt.timestep)
+        self.sink = sink_depth(self.h)
         self.geom_body = np.ascontiguousarray(model.geom_bodyid, dtype=np.int64)
         self.is_sparse = bool(mujoco.mj_isSparse(model))
         self.model_nv = int(model.nv)
@@ -363,4 +365,4 @@ class ReferenceCorrection:
         contacts = Contacts(data.ncon, con.geom, con.pos, con.frame, con.dim, con.friction, con.efc_address)
         jac = Jacobian(data.efc_J, data.efc_J_rownnz, data.efc_J_rowadr, self.is_sparse, self.model_nv)
         correct_aref(contacts, self.geom_body, self.moving, self.vel, data.xpos, data.efc_type, data.efc_pos,
-                     data.efc_margin, data.efc_vel, data.efc_KBIP, data.efc_aref, self.h, _KINDS, jac)
+                     data.efc_margin, data.efc_vel, data.efc_KBIP, data.efc_aref, self.h, _KINDS, jac, self.sink)

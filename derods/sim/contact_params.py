@@ -29,18 +29,20 @@ class ContactParams:
     other; self_collision keeps it on). margin [m]: speculative contacts: rows
     are made for surfaces closer than this, and (in the implicit mode, against
     static and mocap bodies) only keep the rod from crossing the surface by the end
-    of the step; a rod faster than margin / dt still can. 0 (default): contacts are
+    of the step (approached slowly, deeper than 1.5 g h^2); a rod faster than margin / dt
+    still can. 0 (default): contacts are
     found once the rod is inside, up to a step's travel deep. Against bodies that
     move by their own dofs MuJoCo solves the rows, and reads a margin as a skin
     the rod rests on. speculative: each step, each rod's margin grows to its fastest
     vertex's travel in the step (1.5 |v| dt, :mod:`derods.sim.speculative`; never below
     ``margin``), so a rod is found before it goes in however fast it moves (a stiff cable
-    whipping down at 4.5 m/s at dt 1e-2 went 41 mm into a floor without it); off by
-    default: it changes every landing, rows are made for every surface a fast rod nears,
-    and a resting rod's rows hold it a hair above the surface with no friction (a contact
-    not yet touching carries none): a cable dragged along a floor feels 0.76 (pyramidal)
-    to 0.79 (elliptic) of Coulomb's kinetic friction (tests/test_held_rods.py), so not for
-    grips or drags (the implicit and alpha modes; the others warn and leave it out). holder_contact: a held edge collides with the body (with dofs)
+    whipping down at 4.5 m/s at dt 1e-2 went 41 mm into a floor without it; a
+    speculative row approached slowly lets the rod end its step inside by a resting
+    vertex's fall in a step at most, 1.5 g h^2, and it touches, with friction, from the
+    next: a cable dragged along a floor feels 0.992 of Coulomb's kinetic friction,
+    tests/test_held_rods.py); off
+    by default: it changes every landing, and rows are made for every surface a fast rod
+    nears (the implicit and alpha modes; the others warn and leave it out). holder_contact: a held edge collides with the body (with dofs)
     that holds it; off by default, as MuJoCo never collides a body with its parent
     or children. static_friction: a rod's contacts that have rested a few steps are
     anchored where they began (:mod:`derods.sim.friction`), so that below the Coulomb
