@@ -331,8 +331,10 @@ def contact_params(c) -> None:
     k = integer("condim", c.condim)
     if k not in CONDIMS:
         refuse("condim", f"one of {CONDIMS} (1 frictionless, 3 sliding, 4 torsional, 6 rolling)", c.condim)
-    for key in ("self_collision", "rod_rod", "holder_contact", "static_friction", "speculative"):
+    for key in ("self_collision", "rod_rod", "holder_contact", "static_friction"):
         boolean(key, getattr(c, key))
+    if c.speculative is not None:
+        boolean("speculative", c.speculative)
     real("margin", c.margin, "m", ge=0, example=0.0)
     integer("priority", c.priority)
 

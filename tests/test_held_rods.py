@@ -148,21 +148,11 @@ def _case_id(c: held.Case) -> str:
     return f"{c.scenario}-{c.holder}-{c.mass:g}kg-{c.end}-dt{c.dt:g}"
 
 
-#: Quick-sweep cases that fail today, each for a reason measured (issue 27 stays open on them).
-KNOWN = {
-    # the cable drawn over the ledge's edge at dt 1e-2 dips 4.4 mm into it (limit r = 3 mm):
-    # discrete detection (a vertex moving at v is found up to v h inside); the same scene on a
-    # mocap cart, with no holder dofs, dips 5.8 mm
-    "edge-slide-0.01kg-pin-dt0.01": "dt 1e-2: a cable over the ledge dips deeper than r (the mocap cart: 5.8 mm)",
-}
-
-
 def _quick_cases():
     for c in held.grid(quick=True):
         if c.holder == "mocap":
             continue  # the reference without holder dofs (bench_held's table shows it), not judged here
-        reason = KNOWN.get(_case_id(c))
-        yield pytest.param(c, id=_case_id(c), marks=[pytest.mark.xfail(strict=True, reason=reason)] if reason else [])
+        yield pytest.param(c, id=_case_id(c))
 
 
 @pytest.mark.parametrize("case", list(_quick_cases()))

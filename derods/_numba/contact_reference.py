@@ -170,3 +170,29 @@ def correct_aref(contacts, geom_body, moving, body_vel, xpos, efc_type, efc_pos,
                     efc_aref[r] = -efc_kbip[r, 1] * vel - efc_kbip[r, 0] * efc_kbip[r, 2] * d
             else:
                 efc_aref[r] -= efc_kbip[r, 1] * w
+
+
+@nb.njit(cache=True)
+def speed_margins(v, a0, h, rod_of_place, chosen, static, room, sink, flexes, flex_margin):
+    """Each chosen rod's contact margin [m], flex_margin[flexes[rod]] (MuJoCo's model, out),
+    set to max(static, room h |v + h a0|) over its free vertices (their rod rod_of_place
+    (n_places,)), the second term left out where the travel h |v + h a0| is at most
+    ``sink`` [m]; v, a0 (3 n_places,) [m/s, m/s^2]; chosen (n_rods,) bool. Returns whether
+    any margin is > 0."""
+    fastest = np.zeros(len(flexes))
+    for p in range(len(rod_of_place)):
+        rod = rod_of_place[p]
+        if not chosen[rod]:
+            continue
+        sx = v[3 * p] + h * a0[3 * p]
+        sy = v[3 * p + 1] + h * a0[3 * p + 1]
+        sz = v[3 * p + 2] + h * a0[3 * p + 2]
+        fastest[rod] = max(fastest[rod], sx * sx + sy * sy + sz * sz)
+    any_margin = static > 0.0
+    for rod in range(len(flexes)):
+        if chosen[rod]:
+            travel = h * np.sqrt(fastest[rod])
+            margin = max(static, room * travel if travel > sink else 0.0)
+            flex_margin[flexes[rod]] = margin
+            any_margin = any_margin or margin > 0.0
+    return any_margin

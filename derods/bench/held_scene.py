@@ -65,7 +65,7 @@ class Case:
     duration: float | None = None
     friction: float | None = None
     bending: str = "tan"
-    speculative: bool = False
+    speculative: bool | None = None
 
     def __post_init__(self):
         if self.holder not in SCENARIOS.get(self.scenario, ()):

@@ -128,16 +128,27 @@ def make_step(mode: str, model, data, layout, entries, rods, fr, ends, mass_damp
         step.coupled.holder_contact = contact.holder_contact
     if getattr(step, "friction", None) is not None and not contact.static_friction:
         step.friction.enabled = False
-    if contact.speculative:
+    fast = speculative_rods(contact.speculative, step, len(entries))
+    if len(fast):
         if staged:
             rod_of_place = np.searchsorted(layout.v_off, layout.free_vertex, side="right") - 1
-            step.speculative = SpeedMargin(model, step.rod_flex, rod_of_place, contact.margin)
+            step.speculative = SpeedMargin(model, step.rod_flex, rod_of_place, contact.margin, fast)
             step.reference.margin = True
-        else:
+        elif contact.speculative:
             warnings.warn(f"mode {mode!r} steps with mj_step, whose solver reads a contact margin as a skin to rest "
                           "on: speculative contacts are left out; mode 'implicit' (the default) or 'alpha' take "
                           "them", validation.SceneWarning, stacklevel=4)
     return step
+
+
+def speculative_rods(speculative: bool | None, step, n_rods: int) -> np.ndarray:
+    """The rods whose contact margins follow their speed (:mod:`derods.sim.speculative`):
+    every rod (``speculative`` True), none (False), or (None, the default) the rods held by
+    bodies with dofs (:class:`~derods.sim.contact_params.ContactParams`)."""
+    if speculative is None:
+        holders = getattr(step, "holders", None)
+        return np.unique(holders.rod_of_held) if holders else np.zeros(0, dtype=np.int64)
+    return np.arange(n_rods) if speculative else np.zeros(0, dtype=np.int64)
 
 
 def scene_report(spec: mujoco.MjSpec, m: mujoco.MjModel, d: mujoco.MjData, entries: list[RodEntry],

@@ -33,16 +33,24 @@ class ContactParams:
     still can. 0 (default): contacts are
     found once the rod is inside, up to a step's travel deep. Against bodies that
     move by their own dofs MuJoCo solves the rows, and reads a margin as a skin
-    the rod rests on. speculative: each step, each rod's margin grows to its fastest
+    the rod rests on. speculative: each step, a rod's margin grows to its fastest
     vertex's travel in the step (1.5 |v| dt, :mod:`derods.sim.speculative`; never below
-    ``margin``), so a rod is found before it goes in however fast it moves (a stiff cable
-    whipping down at 4.5 m/s at dt 1e-2 went 41 mm into a floor without it; a
-    speculative row approached slowly lets the rod end its step inside by a resting
-    vertex's fall in a step at most, 1.5 g h^2, and it touches, with friction, from the
-    next: a cable dragged along a floor feels 0.992 of Coulomb's kinetic friction,
-    tests/test_held_rods.py); off
-    by default: it changes every landing, and rows are made for every surface a fast rod
-    nears (the implicit and alpha modes; the others warn and leave it out). holder_contact: a held edge collides with the body (with dofs)
+    ``margin``; kept at ``margin`` while the rod travels less than 1.5 g dt^2), so a rod is
+    found before it goes in however fast it moves (a stiff cable whipping down at 4.5 m/s
+    at dt 1e-2 went 41 mm into a floor without it; a speculative row approached slowly
+    lets the rod end its step inside by 1.5 g dt^2 at most, a resting vertex's fall, and
+    it touches, with friction, from the next: a cable dragged along a floor feels 0.992 of
+    Coulomb's kinetic friction, tests/test_held_rods.py). True: every rod; False: none;
+    None (default): the rods held by bodies with dofs (``start_body`` / ``end_body`` with
+    joints), whose contacts are solved with their holders' (without it, the held sweep's
+    carts drew cables 3-14 mm into a ledge or floor at dt 1e-2, benchmarks/bench_held.py;
+    a resting rod keeps its margin, so a cable lying on a floor held by a cart still steps
+    in 1.33x the time of the mocap-held one, bench_world), while
+    free rods and rods held by the world or by mocap bodies keep discrete detection, their
+    records as they were (it changes every landing, and a fast rod makes rows for every
+    surface it nears: a drop on the box edge 142 instead of 90 us a step). The implicit and
+    alpha modes, and the projection mode's rods held by bodies with dofs; elsewhere True
+    warns and leaves it out. holder_contact: a held edge collides with the body (with dofs)
     that holds it; off by default, as MuJoCo never collides a body with its parent
     or children. static_friction: a rod's contacts that have rested a few steps are
     anchored where they began (:mod:`derods.sim.friction`), so that below the Coulomb
@@ -67,7 +75,7 @@ class ContactParams:
     self_collision: bool = False
     rod_rod: bool = True
     margin: float = 0.0
-    speculative: bool = False
+    speculative: bool | None = None
     holder_contact: bool = False
     static_friction: bool = False
     priority: int = 0

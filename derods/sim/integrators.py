@@ -280,7 +280,7 @@ class Implicit(StrainLimit, Step):
         mujoco.mj_checkPos(m, d)
         mujoco.mj_checkVel(m, d)
         if self.speculative is not None:
-            self.speculative.update(self.v, self.a0)
+            self.reference.margin = self.speculative.update(self.v, self.a0)
         if self.reference:
             self.reference.update(d)
         self.forward(d)

@@ -9,14 +9,17 @@ than a resting vertex's fall in a step, :func:`sink_depth`, so that a resting ro
 no more (:func:`derods._numba.contact_reference.correct_aref`). A static margin must be chosen for
 the fastest motion of the run; this one is set every step, per rod, to the travel of the
 rod's fastest vertex in the step with room to spare (:data:`ROOM`), and never below the
-static margin. A rod resting on a floor keeps the margin of its unconstrained step's fall,
-1.5 g h^2 (1.5 mm at dt 1e-2, 15 um at 1e-3).
+static margin; a rod that travels no further in a step than a speculative row would let it
+sink keeps the static margin (:meth:`SpeedMargin.update`).
 """
 
 from __future__ import annotations
 
 import mujoco
 import numpy as np
+
+from .._numba.calls import Bound
+from .._numba.contact_reference import speed_margins
 
 #: A rod's margin is this times its fastest vertex's travel in the step, |v + h a0| h: the
 #: velocity the unconstrained step takes (contacts and other bodies change it within the
@@ -41,30 +44,36 @@ def sink_depth(h: float) -> float:
 
 
 class SpeedMargin:
-    """Each step, every rod's contact margin [m] (its flex's ``flex_margin``) set to
-    max(static margin, ROOM |v + h a0|_max h) over its free vertices.
+    """Each step, the contact margin [m] (its flex's ``flex_margin``) of every rod in
+    ``rods`` set to max(static margin, ROOM |v + h a0|_max h) over its free vertices.
 
     model: the compiled world's; flexes (n_rods,): each rod's flex id; rod_of_place
-    (n_places,): each free vertex's rod; static [m]: the margin the rods were compiled with.
+    (n_places,): each free vertex's rod; static [m]: the margin the rods were compiled with;
+    rods: the rods whose margins follow their speed (the others keep the static one).
     """
 
-    def __init__(self, model: mujoco.MjModel, flexes: np.ndarray, rod_of_place: np.ndarray, static: float):
+    def __init__(self, model: mujoco.MjModel, flexes: np.ndarray, rod_of_place: np.ndarray, static: float,
+                 rods: np.ndarray):
         self.model = model
         self.flexes = np.asarray(flexes, dtype=np.int64)
         self.rod_of_place = np.asarray(rod_of_place, dtype=np.int64)
         self.static = float(static)
         self.h = float(model.opt.timestep)
-        # The free vertices lie rod after rod: each rod with any is one run of them.
-        self._moving = np.unique(self.rod_of_place)
-        self._starts = np.searchsorted(self.rod_of_place, self._moving)
-        self._margin = np.full(len(self.flexes), self.static)
+        self.chosen = np.zeros(len(self.flexes), dtype=np.bool_)
+        self.chosen[np.asarray(rods, dtype=np.int64)] = True
+        self._kernel = Bound(speed_margins)
+        self._flex_margin = model.flex_margin  # a view of the model's, written in place
+        self.sink = sink_depth(self.h)
 
-    def update(self, v: np.ndarray, a0: np.ndarray) -> None:
+    def update(self, v: np.ndarray, a0: np.ndarray) -> bool:
         """Set the margins for the step from the rods' velocities v (n,) [m/s] and their
-        unconstrained accelerations a0 (n,) [m/s^2], both over the free dofs."""
-        if not len(self._moving):
-            return
-        speed = np.linalg.norm((v + self.h * a0).reshape(-1, 3), axis=1)
-        fastest = np.maximum.reduceat(speed, self._starts)
-        self._margin[self._moving] = np.maximum(self.static, ROOM * self.h * fastest)
-        self.model.flex_margin[self.flexes] = self._margin
+        unconstrained accelerations a0 (n,) [m/s^2], both over the free dofs; returns
+        whether any is > 0. A rod whose fastest vertex travels no further in the step than
+        a speculative row would let it sink (:func:`sink_depth`; a resting rod travels
+        g h^2) keeps the static margin: its rows would let it in as far as it goes anyway,
+        and a resting rod makes no rows ahead of it and its step no correction of them (a
+        cable lying on a floor held by a cart with dofs: 195 us a step with the margin
+        always on, 161 without, as without speculation)."""
+        return self._kernel(v, a0, self.h, self.rod_of_place, self.chosen, self.static, ROOM, self.sink,
+                            self.flexes, self._flex_margin)
+
