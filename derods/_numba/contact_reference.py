@@ -80,8 +80,8 @@ def correct_aref(contacts, geom_body, moving, body_vel, xpos, efc_type, efc_pos,
        a row not yet touching (distance d >= 0) only keeps the end-of-step position
        from crossing the surface, d + h (v_i + h a_i) >= 0, so aref_i = -(d / h + v_i) / h;
        if its contact is approached slowly (by at most :data:`SETTLING` ``sink`` [m] in the
-       step), deeper than ``sink`` (a resting vertex's fall in a step,
-       :func:`derods.sim.speculative.sink_depth`), aref_i = -((d + sink) / h + v_i) / h: a rod
+       step), deeper than ``sink`` (with speed-sized margins a resting vertex's fall in a step,
+       :func:`derods.sim.speculative.sink_depth`; else 0), aref_i = -((d + sink) / h + v_i) / h: a rod
        resting or sliding on a surface ends the step touching it, with friction from the
        next (held a hair above it, a dragged cable felt 0.76 of Coulomb's friction);
        a moving body is already posed for the end of the step when MuJoCo measures d, so

@@ -134,6 +134,7 @@ def make_step(mode: str, model, data, layout, entries, rods, fr, ends, mass_damp
             rod_of_place = np.searchsorted(layout.v_off, layout.free_vertex, side="right") - 1
             step.speculative = SpeedMargin(model, step.rod_flex, rod_of_place, contact.margin, fast)
             step.reference.margin = True
+            step.reference.sink = step.speculative.sink
         elif contact.speculative:
             warnings.warn(f"mode {mode!r} steps with mj_step, whose solver reads a contact margin as a skin to rest "
                           "on: speculative contacts are left out; mode 'implicit' (the default) or 'alpha' take "

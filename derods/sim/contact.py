@@ -60,7 +60,6 @@ from .._numba.implicit import sm_solve_into
 from .._numba.solved_rows import rows_touch_rods
 from ..stencil import XX_BANDWIDTH
 from .implicit import ImplicitSystem
-from .speculative import sink_depth
 from .tree_rows import SolvableRows, solvable_rows
 from .trees import TreeDynamics, tree_dofs
 
@@ -333,7 +332,11 @@ class ReferenceCorrection:
         self.any_moving = False
         self.margin = margin
         self.h = float(model.opt.timestep)
-        self.sink = sink_depth(self.h)
+        #: [m] How deep a slowly approached row with a margin lets a vertex end its step
+        #: (correct_aref): the speed margins' sink depth where rods have them
+        #: (derods.sim.speculative), else 0, so that rows of static margins (hair's, the
+        #: pile's) keep rods out altogether, as they always did.
+        self.sink = 0.0
         self.geom_body = np.ascontiguousarray(model.geom_bodyid, dtype=np.int64)
         self.is_sparse = bool(mujoco.mj_isSparse(model))
         self.model_nv = int(model.nv)

@@ -29,8 +29,8 @@ class ContactParams:
     other; self_collision keeps it on). margin [m]: speculative contacts: rows
     are made for surfaces closer than this, and (in the implicit mode, against
     static and mocap bodies) only keep the rod from crossing the surface by the end
-    of the step (approached slowly, deeper than 1.5 g h^2); a rod faster than margin / dt
-    still can. 0 (default): contacts are
+    of the step; a rod faster than margin / dt still can (and a resting one stays a hair
+    above the surface, where a contact has no friction: speculative below lets it settle). 0 (default): contacts are
     found once the rod is inside, up to a step's travel deep. Against bodies that
     move by their own dofs MuJoCo solves the rows, and reads a margin as a skin
     the rod rests on. speculative: each step, a rod's margin grows to its fastest
