@@ -148,7 +148,7 @@ def speculative_rods(speculative: bool | None, step, n_rods: int) -> np.ndarray:
     bodies with dofs (:class:`~derods.sim.contact_params.ContactParams`)."""
     if speculative is None:
         holders = getattr(step, "holders", None)
-        return np.unique(holders.rod_of_held) if holders else np.zeros(0, dtype=np.int64)
+        return holders.rods if holders else np.zeros(0, dtype=np.int64)
     return np.arange(n_rods) if speculative else np.zeros(0, dtype=np.int64)
 
 

@@ -43,8 +43,7 @@ def pull_holders(step, holders, held_x: np.ndarray, af: np.ndarray, aq: np.ndarr
     predicts them)."""
     hl, lay, r = holders, step.layout, step.rods
     lever, w, index = _held_points(holders, jac, metric, len(held_x))
-    rods = np.unique(hl.rod_of_held)
-    rods = rods[step.limited[rods] > 0]
+    rods = hl.rods[step.limited[hl.rods] > 0]
     pulled = _pull_taut(step, hl, rods, held_x, index, af, aq, lever, w)
     n = 0
     if pulled.any():
@@ -119,7 +118,7 @@ def hanging_rods(layout, holders) -> np.ndarray:
     """The open rods held by bodies with dofs at one end only, the other end free (int64):
     those :func:`turn_held` projects."""
     out = []
-    for rod in np.unique(holders.rod_of_held):
+    for rod in holders.rods:
         v0, v1 = layout.v_off[rod], layout.v_off[rod + 1]
         start, end = layout.place[v0] < 0, layout.place[v1 - 1] < 0
         if start != end:

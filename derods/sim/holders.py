@@ -263,8 +263,9 @@ class Holders:
         self.held = reactions.held_vertex[coupled]
         #: The vertex body of each held vertex (riding its holder).
         self.held_body = np.asarray(layout.body, dtype=np.int64)[self.held]
-        #: The rod of each held vertex.
+        #: The rod of each held vertex, and the rods so held (ascending).
         self.rod_of_held = np.searchsorted(rods.v_off, self.held, side="right") - 1
+        self.rods = np.unique(self.rod_of_held)
         # Every vertex's place in its own rod's band, held ones included: the Gauss-Newton
         # blocks between free and held vertices come from the compiled step itself.
         self._place_all = vertex_places(rods)

@@ -25,8 +25,9 @@ from .._numba.contact_reference import speed_margins
 #: velocity the unconstrained step takes (contacts and other bodies change it within the
 #: step; the half to spare covers what they add).
 ROOM = 1.5
-#: [m/s^2] The depth a speculative row lets a slowly approaching vertex end its step inside
-#: the surface: ROOM G0 h^2, a resting vertex's fall in a step on Earth (15 um at dt 1e-3,
+#: [m/s^2] Standard gravity, the scale of the depth a speculative row lets a slowly
+#: approaching vertex end its step inside the surface (:func:`sink_depth`): ROOM G0 h^2, a
+#: resting vertex's fall in a step on Earth (15 um at dt 1e-3,
 #: 1.5 mm at 1e-2; :func:`derods._numba.contact_reference.correct_aref`, which stops faster
 #: ones at the surface), so that a rod resting or sliding on a surface touches it (a
 #: contact with friction) from the next step. Kept from crossing at all, a resting vertex
@@ -54,7 +55,6 @@ class SpeedMargin:
 
     def __init__(self, model: mujoco.MjModel, flexes: np.ndarray, rod_of_place: np.ndarray, static: float,
                  rods: np.ndarray):
-        self.model = model
         self.flexes = np.asarray(flexes, dtype=np.int64)
         self.rod_of_place = np.asarray(rod_of_place, dtype=np.int64)
         self.static = float(static)

@@ -46,7 +46,7 @@ class StrainLimit:
         #: turning edges projected with their holders moving, derods.sim.held_limit.turn_held).
         self.limited = np.array([2 * (not e.rod.closed and e.rod.stretch_stiffness is None) for e in self.entries],
                                 dtype=np.int8)
-        self.limited[np.unique(self.holders.rod_of_held) if self.holders else []] //= 2
+        self.limited[self.holders.rods if self.holders else []] //= 2
         #: After the contact solve only the limit itself (1): brought to their first-order
         #: lengths there too, the edges of a helix landing at 2.4 m/s pulled touching vertices
         #: 8 mm into the floor.
