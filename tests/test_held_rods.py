@@ -326,7 +326,7 @@ def test_a_jointed_holder_under_a_moving_mocap_base_is_stable(end):
     user), holding a 0.5 m rod, the base moved 1 cm sinusoidally, dt = 1e-2: stable for 1 s
     and the rod's edges within the strain limit (1e-3, strain_limit.STRAIN_LIMIT). It
     diverged at step 46 (pin) and 52 (clamp) while the turning holder's differenced K_qq
-    could make the holders' Schur complement softer than the arm (holders.no_softer)."""
+    could make the holders' Schur complement softer than the arm (holder_stiffness.no_softer)."""
     spec = mujoco.MjSpec.from_string(
         '<mujoco><worldbody><body name="base" mocap="true" pos="0 0 0.8"><body name="arm" pos="0 0 -0.1">'
         '<joint type="hinge" axis="0 1 0" pos="0 0 0.1"/><geom type="sphere" size="0.02" mass="0.05" '

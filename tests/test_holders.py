@@ -8,7 +8,7 @@ import pytest
 
 from derods import bench, reference
 from derods.bench import coupling
-from derods.sim import holders, trees
+from derods.sim import holder_stiffness, holders, trees
 
 
 @pytest.mark.parametrize("scene", coupling.SCENES)
@@ -119,4 +119,4 @@ def test_rotational_dofs_are_told_from_translations():
       <body pos="3 0 0"><freejoint/><geom size=".1"/></body>
     </worldbody></mujoco>"""
     m = mujoco.MjModel.from_xml_string(xml)
-    assert [holders.rotational(m, i) for i in range(m.nv)] == [True] * 4 + [False] + [False] * 3 + [True] * 3
+    assert [holder_stiffness.rotational(m, i) for i in range(m.nv)] == [True] * 4 + [False] + [False] * 3 + [True] * 3
