@@ -20,7 +20,8 @@ def _root(parent, i):
 
 @nb.njit(cache=True)
 def partition(row, col, nefc, local_of_dof, dof_off):
-    """Blocks of rods bound by rows, from the nonzeros (row, col) of MuJoCo's efc_J.
+    """Blocks of rods bound by rows, from the nonzeros (row, col) of MuJoCo's efc_J, row by
+    row (row nondecreasing: :func:`derods._numba.contact_rows.efc_triplets`' order).
 
     local_of_dof (nv,): each MuJoCo dof's local rod dof or -1; dof_off (n_rods + 1,): each
     rod's local dofs. Returns (n_blocks; idx, the local dofs block by block, block b's at
@@ -34,16 +35,21 @@ def partition(row, col, nefc, local_of_dof, dof_off):
     n_rods = len(dof_off) - 1
     # Rods bound together by rows (union-find over the rods each row touches).
     parent = np.arange(n_rods)
+    rod_of_local = np.empty(n, dtype=np.int64)
+    for rod in range(n_rods):
+        rod_of_local[dof_off[rod]:dof_off[rod + 1]] = rod
     row_rod = np.full(nefc, -1)
+    row_ptr = np.zeros(nefc + 1, dtype=np.int64)  # row r's nonzeros: row_ptr[r]:row_ptr[r + 1]
     for p in range(len(row)):
+        row_ptr[row[p] + 1] += 1
         loc = local_of_dof[col[p]]
         if loc < 0:
             continue
-        rod = np.searchsorted(dof_off, loc, side="right") - 1
+        rod = rod_of_local[loc]
         r = row[p]
         if row_rod[r] < 0:
             row_rod[r] = rod
-        else:
+        elif row_rod[r] != rod:
             a, b = _root(parent, row_rod[r]), _root(parent, rod)
             if a != b:
                 parent[max(a, b)] = min(a, b)
@@ -100,17 +106,18 @@ def partition(row, col, nefc, local_of_dof, dof_off):
             row_in_block[r] = fill[b] - row_start[b]
             rows[fill[b]] = r
             fill[b] += 1
+    for r in range(nefc):
+        row_ptr[r + 1] += row_ptr[r]
     n_nz = np.zeros(n_blocks + 1, dtype=np.int64)
-    for p in range(len(row)):
-        b = block_of_row[row[p]]
+    for r in range(nefc):
+        b = block_of_row[r]
         if b >= 0:
-            n_nz[b + 1] += 1
+            n_nz[b + 1] += row_ptr[r + 1] - row_ptr[r]
     nz_start = np.cumsum(n_nz)
     nz = np.empty(nz_start[n_blocks], dtype=np.int64)
-    fill = nz_start[:n_blocks].copy()
-    for p in range(len(row)):
-        b = block_of_row[row[p]]
-        if b >= 0:
-            nz[fill[b]] = p
-            fill[b] += 1
+    q = 0
+    for i in range(len(rows)):  # rows block by block, each row's nonzeros side by side
+        for p in range(row_ptr[rows[i]], row_ptr[rows[i] + 1]):
+            nz[q] = p
+            q += 1
     return n_blocks, idx, start, compact, rows, row_start, row_in_block, nz, nz_start, block_of_rod
