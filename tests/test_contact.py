@@ -441,3 +441,39 @@ def test_a_joint_limit_of_a_joined_tree_is_solved_with_the_rods():
     expected = weight * max(d.efc_aref[lim] - row @ d.qacc, 0.0)
     assert expected > 1.0  # the limit carries the squeeze
     assert d.efc_force[lim] == pytest.approx(expected, rel=1e-12)
+
+
+def test_cg_forcing_term_follows_eisenstat_walker_within_its_bounds():
+    """CG's tolerance in Newton's iterative solve (derods/_numba/contact_cg.py, forcing): the
+    first solve CG_TOL_MAX; then CG_FORCING (|g_k| / |g_k-1|)^2, kept in [CG_TOL_MIN,
+    CG_TOL_MAX] and, while the last one squared is large, no lower than that."""
+    from derods._numba import contact_cg as cg
+    assert cg.forcing(0.5, 1.0, 0.0) == cg.CG_TOL_MAX  # the first solve
+    assert cg.forcing(cg.CG_TOL_MAX, 1.0, 1.0) == cg.CG_TOL_MAX  # no progress: loose
+    assert cg.forcing(cg.CG_TOL_MAX, 1e-6, 1.0) == cg.CG_TOL_MIN  # fast progress: the floor
+    eta = cg.forcing(0.05, 0.2, 1.0)  # in between: the formula
+    assert eta == pytest.approx(cg.CG_FORCING * 0.04)
+    assert cg.CG_TOL_MIN < eta < cg.CG_TOL_MAX
+    big = cg.forcing(0.4, 1e-3, 1.0)  # the safeguard: eta_k-1 = 0.4 is large, 0.9 * 0.16 wins
+    assert big == pytest.approx(min(cg.CG_TOL_MAX, cg.CG_FORCING * 0.16))
+
+
+def test_fused_gram_product_equals_the_two_passes_to_the_bit():
+    """J^T W J v in one pass over the rows (contact_cg.gram_apply_into) against J v, times
+    W, then J^T of it (contact_rows.apply_all, transpose_apply_all): the same sums in the
+    same order, inactive rows (w = 0) skipped."""
+    from derods._numba.contact_cg import gram_apply_into
+    from derods._numba.contact_rows import Rows, apply_all, transpose_apply_all
+    rng = np.random.default_rng(3)
+    n, kb, kf = 60, 25, 40
+    col0 = rng.integers(0, n - 3, size=kb)  # windows that run past the end too
+    jw = rng.normal(size=(kb, 9))
+    cols = [np.sort(rng.choice(n, 12, replace=False)) for _ in range(kf)]
+    fptr = np.concatenate([[0], np.cumsum([len(c) for c in cols])]).astype(np.int64)
+    rows = Rows(col0.astype(np.int64), jw, fptr, np.concatenate(cols).astype(np.int64), rng.normal(size=fptr[-1]))
+    w = rng.uniform(1, 10, size=kb + kf) * (rng.random(kb + kf) < 0.6)
+    v = rng.normal(size=n)
+    out = np.full(n, np.nan)
+    gram_apply_into(rows, w, v, out)
+    want = transpose_apply_all(rows, apply_all(rows, v) * w, n)
+    assert np.array_equal(out, want)

@@ -18,7 +18,7 @@ from .banded import cholesky_into, solve_columns, solve_into
 from .dense import spd_factor as _spd_factor, spd_solve_factored as _spd_solve_factored
 from .contact_rows import FAR_DENSE_MAX, Rows, apply_all, exact_line_search, far_columns, rows_band, transpose_apply_all
 from .cones import cone_forces, cone_line_search, virtual_jar, virtual_rows, write_virtual
-from .contact_cg import cg_direction, far_blocks_into_band
+from .contact_cg import CG_TOL_MAX, cg_direction, far_blocks_into_band, forcing
 from .implicit import k_matvec_into, twist_spans, twist_update_columns
 
 #: m dofs that border the band of a contact solve (bodies holding rods, solved with them):
@@ -113,6 +113,7 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
     y = np.empty((n, 1))
     small = np.zeros((0, 0))
     act = np.zeros(0, dtype=np.int64)
+    eta, g_cg = CG_TOL_MAX, 0.0  # the last CG solve's tolerance and gradient
     it = 0
     for it in range(1, max_iter + 1):
         for i in range(k):
@@ -175,7 +176,9 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
         for j in range(n):
             delta[j] = -y[j, 0]
         if n_act and iterative:
-            cg_direction(system, vrows, w, lt, ztw, zspan, grad, delta)
+            eta = forcing(eta, gmax, g_cg)
+            g_cg = gmax
+            cg_direction(system, vrows, w, lt, ztw, zspan, grad, delta, eta)
         elif n_act:
             if not zf_ready:
                 zf[:] = far_cols
