@@ -121,6 +121,8 @@ STEP_WARNINGS = {
     mujoco.mjtWarning.mjWARN_CONTACTFULL: "more contacts than its memory holds (CONTACTFULL)",
     mujoco.mjtWarning.mjWARN_CNSTRFULL: "more constraints than its memory holds (CNSTRFULL)",
 }
+#: The warnings of a full arena: the step ran out of memory, it did not lose the solution.
+FULL_WARNINGS = (mujoco.mjtWarning.mjWARN_CONTACTFULL, mujoco.mjtWarning.mjWARN_CNSTRFULL)
 #: MuJoCo's bound on positions, velocities, accelerations and controls (mjMAXVAL):
 #: beyond it a value is "huge", and MuJoCo resets the data.
 MAX_VALUE = 1e10
@@ -235,8 +237,12 @@ class Guard:
             elif w in (mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC):
                 where = self._where_dof(info)
             at = "" if where is None else f" at {where[1]}"
-            msg = (f"{self._who(where)} diverged at step {step} (t = {time:.6g} s): MuJoCo found "
-                   f"{STEP_WARNINGS[w]}{at}{self._hint(where)}")
+            if w in FULL_WARNINGS:  # not a lost solution: MuJoCo's arena is too small
+                msg = (f"the world stopped at step {step} (t = {time:.6g} s): MuJoCo found {STEP_WARNINGS[w]}"
+                       f"{self._memory_hint()}")
+            else:
+                msg = (f"{self._who(where)} diverged at step {step} (t = {time:.6g} s): MuJoCo found "
+                       f"{STEP_WARNINGS[w]}{at}{self._hint(where)}")
         elif isinstance(err, DivergenceError):
             msg = str(err)
         elif err is not None:
@@ -307,6 +313,15 @@ class Guard:
             f"from its start); {done}: write a finite value"
             + (" (World.set_positions / set_velocities for a rod)" if where and where[0] is not None else "")
             + " and step again", n) from err
+
+    def _memory_hint(self) -> str:
+        """What to do when MuJoCo's arena cannot hold a step's contacts or constraint rows:
+        give the model more memory (a guess: twice what it has)."""
+        size = int(self.model.narena)
+        more = f"{-(-2 * size // (1 << 20))}M" if size >= 1 << 19 else f"{-(-2 * size // 1024)}K"
+        return (f": its arena of {size} bytes (model.narena) is full, the step's contacts and constraint rows live "
+                f"there. Give the scene more memory: <size memory=\"{more}\"/> in its MJCF (spec.memory for an "
+                "MjSpec scene); contact margins, speculative contacts and many touching rods make more rows")
 
     def _hint(self, where) -> str:
         """The fix: a scene element's own inputs when it is what failed (a rod's step did
