@@ -191,6 +191,8 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--cables", type=_count, default=None, help="pile: number of cables (default 100)")
     b.add_argument("--margin", type=float, default=None,
                    help="pile: the cables' contact margin [m] (speculative contacts; default 0)")
+    b.add_argument("--speculative", action="store_true",
+                   help="pile: contact margins sized by each cable's speed (default off)")
     b.add_argument("--motion", choices=["shake", "nod", "turn", "still"], default=None,
                    help="hair: head motion (default shake)")
     b.add_argument("--seconds", type=float, default=None, help="hair, pile: simulated time [s] (default 1.5, 2)")

@@ -237,6 +237,8 @@ def bench(args: argparse.Namespace) -> int:
     for name in ("cables", "margin"):
         if args.case != "pile" and getattr(args, name) is not None:
             raise ValueError(f"--{name} is an option of the pile case only")
+    if args.case != "pile" and args.speculative:
+        raise ValueError("--speculative is an option of the pile case only")
     if args.case == "pile":
         from derods.bench import pile
 
@@ -247,6 +249,7 @@ def bench(args: argparse.Namespace) -> int:
             raise ValueError("the pile case runs on derods only, its cables always touching one another")
         given = {k: v for k, v in (("cables", args.cables), ("vertices", args.vertices), ("dt", args.dt),
                                    ("seconds", args.seconds), ("margin", args.margin)) if v is not None}
+        given["speculative"] = args.speculative
         return pile.main(pile.PileCase(**given), args.json)
     if args.case == "hair":
         from derods.bench import hair as hair_bench

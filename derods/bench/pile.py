@@ -8,8 +8,8 @@ apart, each layer turned by 2.4 rad from the one below and 2.5 diameters above i
 lowest 5 cm above the floor (mjcf/floor.xml), and fall from rest. derods' contacts: rods
 with the floor, rod with rod and each rod with itself (``ContactParams(self_collision=True)``),
 friction 1 (a cable's edges nearer along it than pi r do not touch:
-:func:`derods.sim.exclusion.self_reach`), contact margin ``margin``, implicit steps of
-``dt`` with mass damping 1/s.
+:func:`derods.sim.exclusion.self_reach`), contact margin ``margin`` (or margins sized by
+each cable's speed: ``speculative``), implicit steps of ``dt`` with mass damping 1/s.
 
 A record holds ``cables``, ``vertices``, ``dt``, ``seconds``; ``build_s`` [s] (scene and
 cables to a compiled world); ``steps``, ``wall_s`` [s] (the steps alone), ``cpu_s`` [s]
@@ -58,7 +58,10 @@ class PileCase:
     """cables, vertices: the cables and their vertices each; dt [s]; seconds [s]
     simulated; young [Pa]; friction (sliding coefficient); margin [m]: the cables' contact
     margin (speculative contacts, :class:`derods.sim.contact_params.ContactParams`; 0:
-    a cable landing at 1.2 m/s, 10 mm a step, is found up to 2 r inside another); max_wall_s:
+    a cable landing at 1.2 m/s, 10 mm a step, is found up to 2 r inside another);
+    speculative: margins sized by each cable's speed instead
+    (``ContactParams(speculative=True)``: no deeper than ~0.6 mm once the heap formed, about
+    the cost of margin 0 a frame, docs/performance.md); max_wall_s:
     stop stepping once the steps took this long [s] (the record then says so, and covers
     the steps made)."""
 
@@ -69,6 +72,7 @@ class PileCase:
     young: float = 1e7
     friction: float = 1.0
     margin: float = 0.0
+    speculative: bool = False
     max_wall_s: float | None = None
 
     def __post_init__(self):
@@ -83,6 +87,8 @@ class PileCase:
             raise ValueError(f"friction must be >= 0, got {self.friction!r}")
         if not (np.isfinite(self.margin) and self.margin >= 0):
             raise ValueError(f"margin must be finite and >= 0 [m], got {self.margin!r}")
+        if not isinstance(self.speculative, (bool, np.bool_)):
+            raise ValueError(f"speculative must be True or False, got {self.speculative!r}")
 
     @property
     def material(self) -> Material:
@@ -106,7 +112,8 @@ def layout(case: PileCase) -> list[np.ndarray]:
 
 def build(case: PileCase) -> World:
     """The compiled world of ``case``."""
-    contact = ContactParams(friction=case.friction, self_collision=True, margin=case.margin)
+    contact = ContactParams(friction=case.friction, self_collision=True, margin=case.margin,
+                            speculative=bool(case.speculative))
     world = World(scenes.path("floor"), dt=case.dt, gravity=(0.0, 0.0, -9.81), mode="implicit", mass_damping=1.0,
                   contact=contact, scene_checks=False)
     mat = case.material
@@ -160,7 +167,8 @@ def run(case: PileCase, progress=None) -> dict:
     rec = {
         "case": "pile", "backend": "der", "mujoco_version": mujoco.__version__, "cables": case.cables,
         "vertices": case.vertices, "n_edges": case.vertices - 1, "dt": case.dt, "mode": "implicit",
-        "seconds": case.seconds, "young": case.young, "friction": case.friction, "margin": case.margin, "radius": RADIUS,
+        "seconds": case.seconds, "young": case.young, "friction": case.friction, "margin": case.margin,
+        "speculative": bool(case.speculative), "radius": RADIUS,
         "length": EDGE * (case.vertices - 1), "build_s": build_s, "steps": len(times), "sim_s": len(times) * case.dt,
         "wall_s": float(np.sum(times)), "cpu_s": cpu, "us_per_step": None if median is None else 1e6 * median,
         "mean_us_per_step": None if mean is None else 1e6 * mean,
@@ -182,6 +190,7 @@ def format_record(rec: dict) -> str:
     """One readable line for a pile record."""
     head = (f"pile: {rec['cables']} cables x {rec['vertices']} vertices, dt={rec['dt']:.4g}, "
             f"{rec['seconds']:g} s" + (f", margin {rec['margin']:g} m" if rec.get("margin") else "")
+            + (", speculative contacts" if rec.get("speculative") else "")
             + f" | build {rec['build_s']:.2f} s")
     if not rec["stable"]:
         return f"{head} | UNSTABLE: {rec['note']}"
