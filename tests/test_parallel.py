@@ -111,3 +111,54 @@ def test_a_system_not_positive_definite_is_reported_from_a_worker_thread():
     st.system.arrays.mass[-3:] = -1.0  # the last rod's last vertex: only the last chunk fails
     with pytest.raises(DivergenceError, match="not positive definite"):
         world.step()
+
+
+def _lying(n_rods: int) -> derods.World:
+    """Rods of 12 vertices dropped side by side onto the floor, every third one clamped at
+    both ends with a twist (the blocks' twist terms) and sagging onto it, each rod its own
+    block of contact rows."""
+    mat = derods.Material(young=1e7, radius=0.005)
+    world = derods.World(scenes.path("floor"), dt=1e-2, mass_damping=1.0)
+    for i in range(n_rods):
+        if i % 3 == 1:
+            x = shapes.straight(0.3, 11, start=(0.0, 0.03 * i, 0.006))
+            world.add_rod(derods.Rod(x, mat, boundary=TwistBoundary("clamped", 0.0, 1.0)), f"r{i}", start="clamp",
+                          end="clamp")
+        else:
+            x = shapes.straight(0.3, 11, start=(0.0, 0.03 * i, 0.02 + 0.002 * i))
+            world.add_rod(derods.Rod(x, mat), f"r{i}")
+    world.compile()
+    return world
+
+
+def test_contact_blocks_on_two_threads_give_the_one_thread_step_to_the_bit(monkeypatch):
+    """Past SPLIT_MIN_ROWS rows a step's blocks of rods are solved in two runs, one on a
+    worker thread (derods.sim.contact.ContactStep._solve_threaded): each block's arithmetic
+    is the same, so the positions are the same to the bit as one call's, and the second run
+    did take blocks."""
+    from derods.sim import contact
+
+    splits = []
+    split = contact.split_blocks
+    monkeypatch.setattr(contact, "split_blocks", lambda *a: splits.append(split(*a)) or splits[-1])
+    one, two = _lying(8), _lying(8)
+    one._step.contact._threaded = False
+    two._step.contact._threaded = True
+    two._step.contact.split_min_rows = 1
+    for _ in range(STEPS):
+        one.step()
+        two.step()
+    assert one.data.ncon > 8 and any(s is not None for s in splits)
+    np.testing.assert_array_equal(one.all_positions(), two.all_positions())
+    np.testing.assert_array_equal(one.data.efc_force[:one.data.nefc], two.data.efc_force[:two.data.nefc])
+
+
+def test_blocks_split_where_the_work_halves_and_only_when_worth_it():
+    from derods.sim.contact import SPLIT_MIN_ROWS, split_blocks
+    rows = SPLIT_MIN_ROWS // 4
+    even = np.arange(5) * (96 + rows)  # four equal blocks
+    assert split_blocks(np.arange(5) * 96, even - np.arange(5) * 96) == 2
+    assert split_blocks(np.array([0, 96]), np.array([0, 2 * SPLIT_MIN_ROWS])) is None  # one block
+    assert split_blocks(np.arange(5) * 96, np.arange(5) * 10) is None  # too few rows
+    lopsided = np.array([0, 10 * SPLIT_MIN_ROWS, 10 * SPLIT_MIN_ROWS + 10])  # one block holds the work
+    assert split_blocks(np.array([0, 96, 192]), lopsided) is None

@@ -208,25 +208,75 @@ def contact_step(efc, cone_contacts, supported_types, local_of_dof, dof_off, wid
     and force_out (n,) [N]. Returns 0 if no row touches a rod dof (nothing written), 1
     otherwise.
     """
+    blocks = contact_blocks(efc, supported_types, local_of_dof, dof_off, system, a0, a_out, force_out)
+    if blocks.n_blocks == 0:
+        return 0
+    solve_blocks(efc, cone_contacts, blocks, 0, blocks.n_blocks, local_of_dof, dof_off, width, system, a0, a_out,
+                 force_out, max_iter, tol)
+    return 1
+
+
+class Blocks(NamedTuple):
+    """A step's rows grouped into blocks of rods (:func:`contact_blocks`): the nonzeros of
+    MuJoCo's efc_J (row, col, val), the blocks (:func:`derods._numba.contact_blocks.partition`'s
+    n_blocks, idx, start, compact, rows, row_start, row_in_block, nz, nz_start,
+    block_of_rod), which rows derods solves (supported (nefc,)) and each twist term's rod
+    (rod_of_tw)."""
+
+    row: np.ndarray
+    col: np.ndarray
+    val: np.ndarray
+    n_blocks: int
+    idx: np.ndarray
+    start: np.ndarray
+    compact: np.ndarray
+    rows: np.ndarray
+    row_start: np.ndarray
+    row_in_block: np.ndarray
+    nz: np.ndarray
+    nz_start: np.ndarray
+    block_of_rod: np.ndarray
+    supported: np.ndarray
+    rod_of_tw: np.ndarray
+
+
+@nb.njit(cache=True)
+def contact_blocks(efc, supported_types, local_of_dof, dof_off, system, a0, a_out, force_out):
+    """The first half of :func:`contact_step`: MuJoCo's rows grouped into blocks of rods
+    (:class:`Blocks`; n_blocks 0 when no row touches a rod, nothing written), and, when
+    there are blocks, a_out = a0 and force_out = 0 for the blocks to write into."""
     nefc = efc.nefc
-    tw_lo, tw_hi = system.tw_lo, system.tw_hi
+    tw_lo = system.tw_lo
     row, col, val = efc_triplets(efc.is_sparse, nefc, efc.nv, efc.j, efc.rownnz, efc.rowadr, efc.colind)
     n_blocks, idx, start, compact, rows, row_start, row_in_block, nz, nz_start, block_of_rod = partition(
         row, col, nefc, local_of_dof, dof_off)
-    if n_blocks == 0:
-        return 0
     supported = np.zeros(nefc, dtype=np.bool_)
-    efc_type = efc.type
-    for r in range(nefc):
-        for q in range(len(supported_types)):
-            if efc_type[r] == supported_types[q]:
-                supported[r] = True
-    a_out[:] = a0
-    force_out[:] = 0.0
     rod_of_tw = np.empty(len(tw_lo), dtype=np.int64)
-    for i in range(len(tw_lo)):
-        rod_of_tw[i] = np.searchsorted(dof_off, tw_lo[i], side="right") - 1
-    for b in range(n_blocks):
+    if n_blocks:
+        efc_type = efc.type
+        for r in range(nefc):
+            for q in range(len(supported_types)):
+                if efc_type[r] == supported_types[q]:
+                    supported[r] = True
+        a_out[:] = a0
+        force_out[:] = 0.0
+        for i in range(len(tw_lo)):
+            rod_of_tw[i] = np.searchsorted(dof_off, tw_lo[i], side="right") - 1
+    return Blocks(row, col, val, n_blocks, idx, start, compact, rows, row_start, row_in_block, nz, nz_start,
+                  block_of_rod, supported, rod_of_tw)
+
+
+@nb.njit(cache=True, nogil=True)
+def solve_blocks(efc, cone_contacts, blocks, b0, b1, local_of_dof, dof_off, width, system, a0, a_out, force_out,
+                 max_iter, tol):
+    """The second half of :func:`contact_step`: blocks b0 .. b1 - 1 of ``blocks``
+    (:class:`Blocks`) solved one by one (:func:`solve_block`) into a_out and force_out (their
+    own dofs) and MuJoCo's efc_force (their own rows). Releases the GIL: two runs over
+    disjoint ranges may share a step (:class:`derods.sim.contact.ContactStep`)."""
+    row, col, val, _, idx, start, compact, rows, row_start, row_in_block, nz, nz_start, block_of_rod, supported, \
+        rod_of_tw = blocks
+    tw_lo, tw_hi = system.tw_lo, system.tw_hi
+    for b in range(b0, b1):
         ids = idx[start[b]:start[b + 1]]
         m = len(ids)
         # The block's rows: row numbers within the block, columns in the block's dofs
@@ -265,7 +315,6 @@ def contact_step(efc, cone_contacts, supported_types, local_of_dof, dof_off, wid
         for q in range(m):
             a_out[ids[q]] = a_b[q]
             force_out[ids[q]] = f_b[q]
-    return 1
 
 
 @nb.njit(cache=True)

@@ -147,6 +147,11 @@ def totals(results: list) -> tuple:
     return tuple(int(sum(r[k] for r in results)) for k in range(2))
 
 
+def workers() -> ThreadPoolExecutor:
+    """The worker threads (threads() - 1 of them, made at first use)."""
+    return _workers()
+
+
 def _workers() -> ThreadPoolExecutor:
     global _pool
     if _pool is None:

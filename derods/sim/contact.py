@@ -48,6 +48,7 @@ import mujoco
 import numpy as np
 
 from .._numba import contact as _k
+from .._numba import parallel
 from .._numba.banded import cholesky_into
 from .._numba.calls import Bound
 from .._numba.cone_rows import ConeContacts
@@ -77,6 +78,32 @@ _KINDS = np.array([_FRICTIONLESS, _PYRAMIDAL, _ELLIPTIC])
 #: problem's force scale.
 MAX_ITER = 30
 TOL = 1e-10
+
+
+#: A step's blocks go on two threads only with at least this many rows (MuJoCo's, nefc)
+#: and the lighter run holding at least SPLIT_SHARE of the work (rows plus dofs). Measured
+#: on the 2-core VM, rods of 32 vertices lying on a floor (128 rows each; median step, one
+#: thread against two, three interleaved runs): 10 rods 1.16x slower on two, 30 rods 1.13x
+#: slower, 50 rods (6400 rows) 0.86x, 100 rods 0.75-0.77x.
+SPLIT_MIN_ROWS = 6000
+SPLIT_SHARE = 0.3
+
+
+def split_blocks(start: np.ndarray, row_start: np.ndarray, min_rows: int = SPLIT_MIN_ROWS) -> int | None:
+    """Where a step's blocks split into two runs of nearly equal work (rows plus dofs; start,
+    row_start: each block's dofs and rows, :class:`derods._numba.contact.Blocks`), or None
+    when they should stay on one thread (one block, fewer rows than min_rows, no balanced
+    cut)."""
+    n = len(start) - 1
+    if n < 2 or row_start[-1] < min_rows:
+        return None
+    work = np.cumsum(np.diff(start) + np.diff(row_start))
+    mid = int(np.searchsorted(work, 0.5 * work[-1])) + 1
+    mid = min(max(mid, 1), n - 1)
+    first = work[mid - 1]
+    if min(first, work[-1] - first) < SPLIT_SHARE * work[-1]:
+        return None
+    return mid
 
 
 def cones_or_none(cones):
@@ -127,6 +154,13 @@ class ContactStep:
         self.bodies = bool(np.any(self._dof_tree >= 0))
         self._dynamics = TreeDynamics(model) if self.bodies else None
         self._contact_step = Bound(_k.contact_step)
+        # Blocks of rods on two threads (see _solve): when more than one rod may touch
+        # something and the process has the cores.
+        self._threaded = len(self.dof_off) > 2 and parallel.threads() >= 2
+        #: The rows (nefc) from which the blocks may go on two threads (SPLIT_MIN_ROWS).
+        self.split_min_rows = SPLIT_MIN_ROWS
+        self._blocks = Bound(_k.contact_blocks)
+        self._solve_blocks = [Bound(_k.solve_blocks), Bound(_k.solve_blocks)]  # one a thread
         #: Elliptic cones: MuJoCo's contacts are read for them each step (else never).
         self.elliptic = model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
         none = np.zeros(0, dtype=np.int32)
@@ -166,9 +200,39 @@ class ContactStep:
         # with their count), so their types are the data's (and so are those of rows made
         # from them, tree_rows.solvable_rows); the contacts' for cones, contiguous copies.
         rows = self.rows(data) if efc is None else efc
+        if self._threaded and efc is None and data.nefc >= self.split_min_rows:
+            return self._solve_threaded(data, rows, system, local_of_dof, dof_off, a0, a_out, force_out)
         if self.elliptic:
             return self._contact_step.keyed((data, data) + rest, (rows, self.cone_contacts(data)) + rest)
         return self._contact_step.keyed((data, None) + rest, (rows, None) + rest)
+
+    def _solve_threaded(self, data, rows, system, local_of_dof, dof_off, a0, a_out, force_out) -> int:
+        """:meth:`_solve` of the rods' own rows as its two compiled halves: the blocks
+        (:func:`derods._numba.contact.contact_blocks`), then, when they split into two runs of
+        nearly equal work worth a hand-off (:func:`split_blocks`), the second run on a worker
+        thread while this one solves the first (:func:`derods._numba.contact.solve_blocks`
+        releases the GIL; the runs write disjoint dofs and rows). Each block's arithmetic is
+        the same as in one call."""
+        blocks = self._blocks.keyed((data, SUPPORTED, local_of_dof, dof_off, system, a0, a_out, force_out),
+                                    (rows, SUPPORTED, local_of_dof, dof_off, system, a0, a_out, force_out))
+        n = blocks.n_blocks
+        if n == 0:
+            return 0
+        cones, cone_key = (self.cone_contacts(data), data) if self.elliptic else (None, None)
+        key = (data, cone_key, data, int, int, local_of_dof, dof_off, WINDOW, system, a0, a_out, force_out, MAX_ITER,
+               TOL)
+        args = lambda b0, b1: (rows, cones, blocks, b0, b1, local_of_dof, dof_off, WINDOW, system, a0, a_out,  # noqa: E731
+                               force_out, MAX_ITER, TOL)
+        mid = split_blocks(blocks.start, blocks.row_start, self.split_min_rows)
+        if mid is None:
+            self._solve_blocks[0].keyed(key, args(0, n))
+            return 1
+        second = parallel.workers().submit(self._solve_blocks[1].keyed, key, args(mid, n))
+        try:
+            self._solve_blocks[0].keyed(key, args(0, mid))
+        finally:
+            second.result()
+        return 1
 
     def cone_contacts(self, data: mujoco.MjData) -> ConeContacts | None:
         """MuJoCo's contacts as the stage reads them for elliptic cones (None in a model

@@ -55,6 +55,11 @@ def warm_up() -> None:
                                                                                  radius2=0.005)), "ribbon")
     world.step(3)
     world.contact_force("lying")
+    # The contact stage in its two halves, as worlds of many touching rods run it on two
+    # threads (derods.sim.contact.SPLIT_MIN_ROWS): compiled here, not at such a world's
+    # first step (~15 s).
+    world._step.contact._threaded, world._step.contact.split_min_rows = True, 0
+    world.step(2)
     # Rods held by bodies with dofs (derods.sim.coupled): a slide cart holding a rod that
     # lies on the floor (the bordered contact solve) and a hinged arm (arcs, differences).
     floor = '<geom type="plane" size="2 2 0.1"/>'
@@ -88,7 +93,10 @@ def warm_up() -> None:
         spec = mujoco.MjSpec.from_string(f'<mujoco><option cone="elliptic"/><worldbody>{floor}</worldbody></mujoco>')
         cones = World(spec, dt=1e-2, contact=ContactParams(static_friction=friction))
         cones.add_rod(Rod(shapes.straight(0.3, 6, start=(0.0, 0.5, 0.0099)), mat), "lying")
-        cones.step(3)
+        cones.add_rod(Rod(shapes.straight(0.3, 6, start=(0.0, 0.7, 0.0099)), mat), "beside")
+        cones.step(2)
+        cones._step.contact._threaded, cones._step.contact.split_min_rows = True, 0  # (as above)
+        cones.step(1)
     for mode in ("explicit", "projection"):
         w = World(dt=1e-5 if mode == "explicit" else 1e-2, mode=mode)
         w.add_rod(Rod(shapes.cantilever(0.3, 6), mat), start="clamp")
