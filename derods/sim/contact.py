@@ -83,8 +83,9 @@ TOL = 1e-10
 #: A step's blocks go on two threads only with at least this many rows (MuJoCo's, nefc)
 #: and the lighter run holding at least SPLIT_SHARE of the work (rows plus dofs). Measured
 #: on the 2-core VM, rods of 32 vertices lying on a floor (128 rows each; median step, one
-#: thread against two, three interleaved runs): 10 rods 1.16x slower on two, 30 rods 1.13x
-#: slower, 50 rods (6400 rows) 0.86x, 100 rods 0.75-0.77x.
+#: thread against two, three interleaved runs, benchmarks/bench_contact_threads.py --force):
+#: 10 rods 1.16x slower on two, 30 rods 1.13x slower, 50 rods (6400 rows) 0.84-0.86x, 100
+#: rods 0.75-0.81x.
 SPLIT_MIN_ROWS = 6000
 SPLIT_SHARE = 0.3
 
@@ -221,15 +222,18 @@ class ContactStep:
         cones, cone_key = (self.cone_contacts(data), data) if self.elliptic else (None, None)
         key = (data, cone_key, data, int, int, local_of_dof, dof_off, WINDOW, system, a0, a_out, force_out, MAX_ITER,
                TOL)
-        args = lambda b0, b1: (rows, cones, blocks, b0, b1, local_of_dof, dof_off, WINDOW, system, a0, a_out,  # noqa: E731
-                               force_out, MAX_ITER, TOL)
+
+        def run(thread: int, b0: int, b1: int) -> None:  # blocks b0 .. b1 - 1
+            self._solve_blocks[thread].keyed(key, (rows, cones, blocks, b0, b1, local_of_dof, dof_off, WINDOW, system,
+                                                   a0, a_out, force_out, MAX_ITER, TOL))
+
         mid = split_blocks(blocks.start, blocks.row_start, self.split_min_rows)
         if mid is None:
-            self._solve_blocks[0].keyed(key, args(0, n))
+            run(0, 0, n)
             return 1
-        second = parallel.workers().submit(self._solve_blocks[1].keyed, key, args(mid, n))
+        second = parallel.workers().submit(run, 1, mid, n)
         try:
-            self._solve_blocks[0].keyed(key, args(0, mid))
+            run(0, 0, mid)
         finally:
             second.result()
         return 1
