@@ -12,22 +12,10 @@ Run: .venv/bin/python benchmarks/bench_contact_threads.py [--counts 10,30,50,100
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
 
-from bench_world import strands
-
-
-def median_step_us(world, steps: int, warm: int = 20) -> float:
-    world.step(warm)
-    t = np.empty(steps)
-    for k in range(steps):
-        t0 = time.perf_counter()
-        world.step()
-        t[k] = time.perf_counter() - t0
-    return float(np.median(t)) * 1e6
-
+from bench_world import median_us, strands
 
 def run(count: int, repeat: int, steps: int, force: bool) -> dict:
     der = strands(count, lying=True)[0]
@@ -39,7 +27,7 @@ def run(count: int, repeat: int, steps: int, force: bool) -> dict:
             stage._threaded = threaded and stage._threaded
             if force and threaded:
                 stage._threaded, stage.split_min_rows = True, 0
-            runs[threaded].append(median_step_us(world, steps))
+            runs[threaded].append(median_us(world, steps, 20))
     one, two = float(np.median(runs[False])), float(np.median(runs[True]))
     return {"rods": count, "one_thread_us": one, "two_threads_us": two, "ratio": two / one}
 

@@ -123,7 +123,7 @@ class Runner:
         self.combine = combine
 
     def __call__(self, *args):
-        pool = _workers()
+        pool = workers()
         futures = [pool.submit(call, *args, part) for call, part in zip(self.calls[1:], self.parts[1:])]
         results, errors = [], []
         for run in [lambda: self.calls[0](*args, self.parts[0])] + [f.result for f in futures]:
@@ -149,10 +149,6 @@ def totals(results: list) -> tuple:
 
 def workers() -> ThreadPoolExecutor:
     """The worker threads (threads() - 1 of them, made at first use)."""
-    return _workers()
-
-
-def _workers() -> ThreadPoolExecutor:
     global _pool
     if _pool is None:
         _pool = ThreadPoolExecutor(max(1, threads() - 1), thread_name_prefix="derods-rods")
