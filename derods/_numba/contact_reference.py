@@ -1,6 +1,6 @@
 """Reference accelerations of MuJoCo's contact rows corrected for what derods solves,
 compiled: the motion of bodies moved without dofs (mocap bodies), and speculative rows
-(a contact margin). The stage around it is :class:`derods.sim.contact.ReferenceCorrection`.
+(a contact margin). The stage around it is :class:`derods.sim.contact_reference.ReferenceCorrection`.
 """
 
 from __future__ import annotations

@@ -27,7 +27,7 @@ MuJoCo's own elliptic cost (:mod:`derods._numba.cones`). Rows that reach bodies
 beyond them keep the force MuJoCo's own solver computed for them in the same step.
 
 Two corrections of MuJoCo's reference accelerations come first
-(:class:`ReferenceCorrection`). Bodies that move without dofs (mocap bodies,
+(:class:`derods.sim.contact_reference.ReferenceCorrection`). Bodies that move without dofs (mocap bodies,
 posed by the user each step) have no velocity for MuJoCo, so a row against one
 would only see the penetration the move left, never the approach: they get the
 velocity of their last move. And a rod with a contact margin (speculative
@@ -53,7 +53,6 @@ from .._numba.banded import cholesky_into
 from .._numba.calls import Bound
 from .._numba.cone_rows import ConeContacts
 from .._numba.contact_newton import Border, newton
-from .._numba.contact_reference import Contacts, Jacobian, correct_aref
 from .._numba.contact_rows import efc_triplets
 from .._numba.coupled import bordered_rows, row_forces_into
 from .._numba.dense import lu_factor
@@ -72,8 +71,6 @@ _ELLIPTIC = int(mujoco.mjtConstraint.mjCNSTR_CONTACT_ELLIPTIC)
 #: The constraint types derods re-solves: MuJoCo's pyramidal, frictionless and elliptic
 #: contacts (an elliptic one as its cone, :mod:`derods._numba.cones`).
 SUPPORTED = np.array([_PYRAMIDAL, _FRICTIONLESS, _ELLIPTIC])
-#: The contact types the reference correction reads (contact_reference.correct_aref).
-_KINDS = np.array([_FRICTIONLESS, _PYRAMIDAL, _ELLIPTIC])
 #: Newton's method: iteration cap, and the tolerance on the gradient relative to the
 #: problem's force scale.
 MAX_ITER = 30
@@ -379,61 +376,3 @@ class WithTrees:
         """The appended trees' acceleration, for MuJoCo's integrator to reproduce."""
         if len(self.dofs):
             self.contact._dynamics.write(d, self.dofs, self.metric, qacc)
-
-
-class ReferenceCorrection:
-    """Mocap bodies' velocities, from their poses in consecutive steps, and the
-    correction of contact rows to them and to speculative margins (see the module
-    docstring). ``margin``: whether any rod has a contact margin.
-
-    Call :meth:`update` once per step after the mocap poses for the step are set and
-    before MuJoCo's forward pass; :meth:`correct` after it, before the rows are solved.
-    """
-
-    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, margin: bool):
-        self.body = np.flatnonzero(model.body_mocapid >= 0)
-        self.slot = model.body_mocapid[self.body]
-        self.pos = data.mocap_pos.copy()
-        self.quat = data.mocap_quat.copy()
-        self.vel = np.zeros((model.nbody, 6))
-        self.moving = np.zeros(model.nbody, dtype=bool)
-        self.any_moving = False
-        self.margin = margin
-        self.h = float(model.opt.timestep)
-        #: [m] How deep a slowly approached row with a margin lets a vertex end its step
-        #: (correct_aref): the speed margins' sink depth where rods have them
-        #: (derods.sim.speculative), else 0, so that rows of static margins (hair's, the
-        #: pile's) keep rods out altogether, as they always did.
-        self.sink = 0.0
-        self.geom_body = np.ascontiguousarray(model.geom_bodyid, dtype=np.int64)
-        self.is_sparse = bool(mujoco.mj_isSparse(model))
-        self.model_nv = int(model.nv)
-        self._dq = np.zeros(4)
-        self._w = np.zeros(3)
-
-    def __bool__(self) -> bool:
-        return len(self.body) > 0 or self.margin
-
-    def update(self, data: mujoco.MjData) -> None:
-        """Velocities [m/s, rad/s] of the mocap bodies over the last step."""
-        self.any_moving = False
-        for b, k in zip(self.body, self.slot):
-            lin = (data.mocap_pos[k] - self.pos[k]) / self.h
-            # world-frame rotation from the old orientation to the new
-            mujoco.mju_mulQuat(self._dq, data.mocap_quat[k], self.quat[k] * np.array([1.0, -1.0, -1.0, -1.0]))
-            mujoco.mju_quat2Vel(self._w, self._dq, self.h)
-            self.vel[b, :3], self.vel[b, 3:] = lin, self._w
-            self.moving[b] = bool(np.any(lin != 0.0) or np.any(self._w != 0.0))
-            self.any_moving |= self.moving[b]
-        self.pos[:] = data.mocap_pos
-        self.quat[:] = data.mocap_quat
-
-    def correct(self, data: mujoco.MjData) -> None:
-        """Correct the contact rows' reference accelerations in ``data.efc_aref``."""
-        if not (self.any_moving or self.margin) or data.ncon == 0:
-            return
-        con = data.contact
-        contacts = Contacts(data.ncon, con.geom, con.pos, con.frame, con.dim, con.friction, con.efc_address)
-        jac = Jacobian(data.efc_J, data.efc_J_rownnz, data.efc_J_rowadr, self.is_sparse, self.model_nv)
-        correct_aref(contacts, self.geom_body, self.moving, self.vel, data.xpos, data.efc_type, data.efc_pos,
-                     data.efc_margin, data.efc_vel, data.efc_KBIP, data.efc_aref, self.h, _KINDS, jac, self.sink)

@@ -32,7 +32,8 @@ from .._numba import step as _rods
 from .._numba.projection import limit_chunk, limit_strain
 from ..step import EndBodies, Frames, RodSet, Terms, evaluate
 from .clamps import Reactions
-from .contact import SUPPORTED, ContactStep, ReferenceCorrection
+from .contact import SUPPORTED, ContactStep
+from .contact_reference import ReferenceCorrection
 from .coupled import CoupledStep
 from .forward import Forward
 from .friction import StaticFriction
