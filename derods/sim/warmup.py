@@ -89,6 +89,8 @@ def warm_up() -> None:
     cones = World(spec, dt=1e-2, contact=ContactParams(static_friction=True))
     cones.add_rod(Rod(dragged, mat), "dragged", start="pin", start_body="warmup_cart")
     cones.step(3)
+    # (Two rods held by nothing: their step runs its stages in one call each,
+    # derods._numba.implicit_stages.)
     for friction in (False, True):
         spec = mujoco.MjSpec.from_string(f'<mujoco><option cone="elliptic"/><worldbody>{floor}</worldbody></mujoco>')
         cones = World(spec, dt=1e-2, contact=ContactParams(static_friction=friction))
