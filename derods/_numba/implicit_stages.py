@@ -29,8 +29,8 @@ from .projection import limit_strain, touching_into
 from .step import rods_step
 
 
-class StageArrays(NamedTuple):
-    """Everything the stages read and write, held once by a world's step
+class PredictArrays(NamedTuple):
+    """What :func:`predict` reads and writes, held once by a world's step
     (:class:`derods.sim.integrators.Implicit`), in the order the kernels take them.
 
     Positions (:func:`derods._numba.coupling.gather_positions`): x0, qpos, qpos_adr,
@@ -39,10 +39,8 @@ class StageArrays(NamedTuple):
     band_of_rod, terms. The unconstrained solve (:func:`derods._numba.implicit.unconstrained_step`):
     system, places, params, qvel, xfrc_applied, v, other, rhs, kv, a0 (n,) [m/s^2]. The
     strain limit (:func:`derods._numba.projection.limit_strain`): inv_mass (n_vertices,)
-    [1/kg], limited (n_rods,) before the contact solve and limited_rest after it, touching
-    (n_vertices,) scratch for the touching vertices' weights, xp (n_vertices, 3) scratch.
-    MuJoCo's side (:func:`derods._numba.coupling.write_applied`, ``write_acceleration``):
-    dofs, mass, qfrc_applied, qacc, qfrc_smooth, qfrc_constraint, with_force (bool)."""
+    [1/kg], limited (n_rods,), xp (n_vertices, 3) scratch. MuJoCo's side
+    (:func:`derods._numba.coupling.write_applied`): dofs, mass, qfrc_applied."""
 
     x0: np.ndarray
     qpos: np.ndarray
@@ -72,12 +70,35 @@ class StageArrays(NamedTuple):
     a0: np.ndarray
     inv_mass: np.ndarray
     limited: np.ndarray
-    limited_rest: np.ndarray
-    touching: np.ndarray
     xp: np.ndarray
     dofs: np.ndarray
     mass: np.ndarray
     qfrc_applied: np.ndarray
+
+
+class ConcludeArrays(NamedTuple):
+    """What :func:`conclude` reads and writes (only those: numba unboxes every array of a
+    bundle at each call). The strain limit's: x (n_vertices, 3) [m], v_off, e_off, rest_len
+    (the rods' :class:`derods.step.RodSet` fields), place, v (n,) [m/s], h [s], inv_mass
+    (n_vertices,) [1/kg] with free_vertex to make the touching ones lighter into touching
+    (n_vertices,) scratch, limited (n_rods,), xp (n_vertices, 3) scratch; MuJoCo's
+    (:func:`derods._numba.coupling.write_acceleration`): dofs, mass, qacc, qfrc_smooth,
+    qfrc_constraint, with_force (bool)."""
+
+    x: np.ndarray
+    v_off: np.ndarray
+    e_off: np.ndarray
+    rest_len: np.ndarray
+    place: np.ndarray
+    v: np.ndarray
+    h: float
+    inv_mass: np.ndarray
+    free_vertex: np.ndarray
+    touching: np.ndarray
+    limited: np.ndarray
+    xp: np.ndarray
+    dofs: np.ndarray
+    mass: np.ndarray
     qacc: np.ndarray
     qfrc_smooth: np.ndarray
     qfrc_constraint: np.ndarray
@@ -89,7 +110,7 @@ def predict(s, max_strain, strain_limit, tol, max_iter):
     """x from MuJoCo's qpos and xpos; the rods' terms, with the strain check against
     max_strain; a0; the strain limit on a0 (vertex weights s.inv_mass, rods flagged
     s.limited, strain_limit inf: none; the projection to tol in max_iter iterations);
-    qfrc_applied on the rod dofs (s: :class:`StageArrays`). Returns (the first rod strained
+    qfrc_applied on the rod dofs (s: :class:`PredictArrays`). Returns (the first rod strained
     beyond max_strain or -1: then nothing after the terms ran; rods projected). Raises
     ValueError if A or a projection's matrix is not positive definite."""
     gather_positions(s.x0, s.qpos, s.qpos_adr, s.free_vertex, s.xpos, s.moved_vertex, s.moved_body, s.x)
@@ -108,22 +129,21 @@ def predict(s, max_strain, strain_limit, tol, max_iter):
 
 
 @nb.njit(cache=True)
-def conclude(s, a, force, touching_weight, strain_limit, tol, max_iter):
+def conclude(c, a, force, touching_weight, strain_limit, tol, max_iter):
     """After the contact solve: the strain limit on its acceleration a (n,) [m/s^2]
     (changed in place), the vertices its force (n,) [N] pushes on made ``touching_weight``
     times lighter, rods the projection leaves so projected again by their own masses
-    (rods flagged s.limited_rest; strain_limit inf: none); then a handed to MuJoCo's
-    integrator (s: :class:`StageArrays`). Returns the rods projected. Raises ValueError if
-    a projection's matrix is not positive definite."""
+    (rods flagged c.limited; strain_limit inf: none); then a handed to MuJoCo's
+    integrator (c: :class:`ConcludeArrays`). Returns the rods projected. Raises ValueError
+    if a projection's matrix is not positive definite."""
     projected = 0
     if strain_limit < 1e300:
-        rods, h = s.rods, s.params.h
-        touching_into(force, s.inv_mass, s.free_vertex, touching_weight, s.touching)
-        projected, left = limit_strain(s.x, rods.v_off, rods.e_off, rods.rest_len, s.touching, s.place, s.v, a, h,
-                                       s.limited_rest, strain_limit, tol, max_iter, s.xp, s.x)
+        touching_into(force, c.inv_mass, c.free_vertex, touching_weight, c.touching)
+        projected, left = limit_strain(c.x, c.v_off, c.e_off, c.rest_len, c.touching, c.place, c.v, a, c.h,
+                                       c.limited, strain_limit, tol, max_iter, c.xp, c.x)
         if left:
-            more, left = limit_strain(s.x, rods.v_off, rods.e_off, rods.rest_len, s.inv_mass, s.place, s.v, a, h,
-                                      s.limited_rest, strain_limit, tol, max_iter, s.xp, s.x)
+            more, left = limit_strain(c.x, c.v_off, c.e_off, c.rest_len, c.inv_mass, c.place, c.v, a, c.h,
+                                      c.limited, strain_limit, tol, max_iter, c.xp, c.x)
             projected += more
-    write_acceleration(s.dofs, s.mass, a, s.qacc, s.qfrc_smooth, s.qfrc_constraint, s.with_force)
+    write_acceleration(c.dofs, c.mass, a, c.qacc, c.qfrc_smooth, c.qfrc_constraint, c.with_force)
     return projected

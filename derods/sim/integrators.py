@@ -32,7 +32,7 @@ from .._numba import implicit as _imp
 from .._numba import parallel
 from .._numba import step as _rods
 from .._numba.calls import Bound
-from .._numba.implicit_stages import StageArrays, conclude, predict
+from .._numba.implicit_stages import ConcludeArrays, PredictArrays, conclude, predict
 from .._numba.projection import limit_chunk, limit_strain
 from ..step import EndBodies, Frames, RodSet, Terms, evaluate
 from .clamps import Reactions
@@ -276,7 +276,7 @@ class Implicit(StrainLimit, Step):
         self._any_limited = bool(self.limited.any())
         # The same argument objects every step (the contact stage's a and force are its own).
         self._prediction, self._conclusion = Bound(predict), Bound(conclude)
-        self._arrays: StageArrays | None = None  # made at the first step in one call
+        self._arrays: tuple[PredictArrays, ConcludeArrays] | None = None  # made at the first step in one call
 
     def step(self) -> None:
         m, d, lay = self.model, self.data, self.layout
@@ -342,20 +342,21 @@ class Implicit(StrainLimit, Step):
         return (type(self) is Implicit and not self.split.parallel
                 and not (self._moving or self.reactions or self.riders or self.prescribed or self.holders))
 
-    def _stage_arrays(self) -> StageArrays:
-        """The arrays the one-call stages take (:class:`derods._numba.implicit_stages.StageArrays`),
-        made once (again if the implicit system's bundle was replaced: a new band)."""
-        arrays = self._arrays
-        if arrays is None or arrays.system is not self.system.arrays:
-            lay = self.layout
-            arrays = self._arrays = StageArrays(
-                lay.x0, self.qpos, lay.qpos_adr, lay.free_vertex, self.xpos, lay.moved_vertex, lay.moved_body, self.x,
-                self.rods, self.ends, self.frames, self.xmat, lay.place, self._bands, self._band_of_rod, self.terms,
-                self.system.arrays, lay.places, self.params, self.qvel, self.xfrc_applied, self.v, self.other,
-                self._rhs, self._kv, self.a0, self.inv_mass, self.limited, self._limited_rest,
-                np.empty_like(self.inv_mass), self._xp, lay.dofs, lay.mass, self.qfrc_applied, self.qacc,
-                self.qfrc_smooth, self.qfrc_constraint, bool(self.resolves))
-        return arrays
+    def _stage_arrays(self) -> tuple[PredictArrays, ConcludeArrays]:
+        """The arrays the one-call stages take (:mod:`derods._numba.implicit_stages`), made
+        once (again if the implicit system's bundle was replaced: a new band)."""
+        if self._arrays is None or self._arrays[0].system is not self.system.arrays:
+            lay, r = self.layout, self.rods
+            self._arrays = (
+                PredictArrays(lay.x0, self.qpos, lay.qpos_adr, lay.free_vertex, self.xpos, lay.moved_vertex,
+                              lay.moved_body, self.x, r, self.ends, self.frames, self.xmat, lay.place, self._bands,
+                              self._band_of_rod, self.terms, self.system.arrays, lay.places, self.params, self.qvel,
+                              self.xfrc_applied, self.v, self.other, self._rhs, self._kv, self.a0, self.inv_mass,
+                              self.limited, self._xp, lay.dofs, lay.mass, self.qfrc_applied),
+                ConcludeArrays(self.x, r.v_off, r.e_off, r.rest_len, lay.place, self.v, self.h, self.inv_mass,
+                               lay.free_vertex, np.empty_like(self.inv_mass), self._limited_rest, self._xp, lay.dofs,
+                               lay.mass, self.qacc, self.qfrc_smooth, self.qfrc_constraint, bool(self.resolves)))
+        return self._arrays
 
     def _strain_limit_now(self) -> float:
         """The strain limit the stages apply: World's, or inf when no rod is limited."""
@@ -366,7 +367,7 @@ class Implicit(StrainLimit, Step):
         MuJoCo, as one compiled call (the same kernels in the same order: the same results)."""
         self.x_start = self.x
         try:
-            bad, self.n_projected = self._prediction(self._stage_arrays(), MAX_STRAIN, self._strain_limit_now(),
+            bad, self.n_projected = self._prediction(self._stage_arrays()[0], MAX_STRAIN, self._strain_limit_now(),
                                                      PROJECTION_TOL, PROJECTION_MAX_ITER)
         except ValueError as err:  # a banded Cholesky found A (or a projection's matrix) not positive definite
             self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)
@@ -379,7 +380,7 @@ class Implicit(StrainLimit, Step):
         for MuJoCo's integrator, as one compiled call (as _limit_strain(a, _touching())
         and write_acceleration: the same results)."""
         try:
-            self.n_projected += self._conclusion(self._stage_arrays(), a, self.contact.force, TOUCHING_WEIGHT,
+            self.n_projected += self._conclusion(self._stage_arrays()[1], a, self.contact.force, TOUCHING_WEIGHT,
                                                  self._strain_limit_now(), PROJECTION_TOL, PROJECTION_MAX_ITER)
         except ValueError as err:  # the projection's banded Cholesky, in a state gone wild
             self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)
