@@ -13,6 +13,13 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
+from ..stencil import XX_BANDWIDTH
+
+#: The window of a banded row in the usual band (a rod's: 8 sub-diagonals): rows whose
+#: window lies whole within the dofs run with it as a constant bound, so that their loops
+#: compile unrolled (the same arithmetic in the same order as any other bound).
+WINDOW = XX_BANDWIDTH + 1
+
 
 #: Far rows beyond which a contact solve without a border (:mod:`derods._numba.contact`)
 #: stops treating them as a dense block: their weights row by row, Newton's direction by
@@ -44,17 +51,23 @@ def rows_band(col0, jw, weights, n):
         if wi == 0.0:
             continue
         c0 = col0[i]
-        for q in range(w_):
-            if c0 + q >= n:
-                break
-            jq = jw[i, q] * wi
-            if jq == 0.0:
-                continue
-            for p in range(q, w_):
-                if c0 + p >= n:
-                    break
-                out[p - q, c0 + q] += jw[i, p] * jq
+        top = min(w_, n - c0)  # the window's entries within the dofs
+        if top == WINDOW:
+            _row_into_band(out, jw, i, c0, wi, WINDOW)
+        else:
+            _row_into_band(out, jw, i, c0, wi, top)
     return out
+
+
+@nb.njit(cache=True, inline="always")
+def _row_into_band(out, jw, i, c0, wi, top):
+    """out += w_i j_i j_i^T (lower band) for row i's first ``top`` window entries."""
+    for q in range(top):
+        jq = jw[i, q] * wi
+        if jq == 0.0:
+            continue
+        for p in range(q, top):
+            out[p - q, c0 + q] += jw[i, p] * jq
 
 
 @nb.njit(cache=True)
@@ -65,20 +78,26 @@ def rows_diag(col0, jw, zb):
     out = np.zeros(len(col0))
     for i in range(len(col0)):
         c0 = col0[i]
-        acc = 0.0
-        for q in range(w_):
-            if c0 + q >= n:
-                break
-            jq = jw[i, q]
-            if jq == 0.0:
-                continue
-            acc += jq * jq * zb[0, c0 + q]
-            for p in range(q + 1, w_):
-                if c0 + p >= n:
-                    break
-                acc += 2.0 * jw[i, p] * jq * zb[p - q, c0 + q]
-        out[i] = acc
+        top = min(w_, n - c0)
+        if top == WINDOW:
+            out[i] = _row_quadratic(jw, zb, i, c0, WINDOW)
+        else:
+            out[i] = _row_quadratic(jw, zb, i, c0, top)
     return out
+
+
+@nb.njit(cache=True, inline="always")
+def _row_quadratic(jw, zb, i, c0, top):
+    """j_i^T Z j_i over row i's first ``top`` window entries."""
+    acc = 0.0
+    for q in range(top):
+        jq = jw[i, q]
+        if jq == 0.0:
+            continue
+        acc += jq * jq * zb[0, c0 + q]
+        for p in range(q + 1, top):
+            acc += 2.0 * jw[i, p] * jq * zb[p - q, c0 + q]
+    return acc
 
 
 @nb.njit(cache=True)
@@ -88,11 +107,21 @@ def rows_apply(col0, jw, a):
     out = np.zeros(len(col0))
     for i in range(len(col0)):
         c0 = col0[i]
-        acc = 0.0
-        for q in range(min(jw.shape[1], n - c0)):
-            acc += jw[i, q] * a[c0 + q]
-        out[i] = acc
+        top = min(jw.shape[1], n - c0)
+        if top == WINDOW:
+            out[i] = _row_dot(jw, a, i, c0, WINDOW)
+        else:
+            out[i] = _row_dot(jw, a, i, c0, top)
     return out
+
+
+@nb.njit(cache=True, inline="always")
+def _row_dot(jw, a, i, c0, top):
+    """j_i . a over row i's first ``top`` window entries."""
+    acc = 0.0
+    for q in range(top):
+        acc += jw[i, q] * a[c0 + q]
+    return acc
 
 
 @nb.njit(cache=True)
@@ -101,9 +130,19 @@ def rows_transpose_apply(col0, jw, lam, n):
     out = np.zeros(n)
     for i in range(len(col0)):
         c0 = col0[i]
-        for q in range(min(jw.shape[1], n - c0)):
-            out[c0 + q] += jw[i, q] * lam[i]
+        top = min(jw.shape[1], n - c0)
+        if top == WINDOW:
+            _add_row(out, jw, lam[i], i, c0, WINDOW)
+        else:
+            _add_row(out, jw, lam[i], i, c0, top)
     return out
+
+
+@nb.njit(cache=True, inline="always")
+def _add_row(out, jw, li, i, c0, top):
+    """out += lam_i j_i over row i's first ``top`` window entries."""
+    for q in range(top):
+        out[c0 + q] += jw[i, q] * li
 
 
 @nb.njit(cache=True)
