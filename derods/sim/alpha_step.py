@@ -86,7 +86,7 @@ class GeneralizedAlpha(Implicit):
         """Project the rods strained beyond the strain limit onto their rest lengths,
         moving qpos and adding the move / h to qvel. Returns how many were."""
         self.n_projected = 0
-        if not self.limited.any() or math.isinf(self.strain_limit):
+        if math.isinf(self._strain_limit_now()):
             return 0
         inv_mass = self._touching() if self.n_steps else self.inv_mass
         self._shift[:] = 0.0

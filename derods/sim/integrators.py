@@ -22,8 +22,6 @@ divergence check (:mod:`derods.sim.divergence`).
 
 from __future__ import annotations
 
-import math
-
 import mujoco
 import numpy as np
 
@@ -31,13 +29,12 @@ from .._numba import coupling as _io
 from .._numba import implicit as _imp
 from .._numba import parallel
 from .._numba import step as _rods
-from .._numba.calls import Bound
-from .._numba.implicit_stages import ConcludeArrays, PredictArrays, conclude, predict
 from .._numba.projection import limit_chunk, limit_strain
 from ..step import EndBodies, Frames, RodSet, Terms, evaluate
 from .clamps import Reactions
 from .contact import SUPPORTED, ContactStep
 from .contact_reference import ReferenceCorrection
+from .implicit_stages import OneCallStages
 from .coupled import CoupledStep
 from .forward import Forward
 from .friction import StaticFriction
@@ -46,8 +43,7 @@ from .holders import Holders
 from .implicit import ImplicitSystem
 from .layout import Layout, RodEntry
 from .prescribed import PrescribedVertices
-from .projection import PROJECTION_MAX_ITER, PROJECTION_TOL
-from .strain_limit import TOUCHING_WEIGHT, StrainLimit
+from .strain_limit import StrainLimit
 
 
 
@@ -240,7 +236,7 @@ class Explicit(Step):
         self.check()
 
 
-class Implicit(StrainLimit, Step):
+class Implicit(OneCallStages, StrainLimit, Step):
     """Linearly implicit backward Euler with contacts re-solved in its metric (the default)."""
 
     mode = "implicit"
@@ -273,16 +269,14 @@ class Implicit(StrainLimit, Step):
         eulerdamp = not self.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_EULERDAMP
         self.resolves = not self.euler or (eulerdamp and bool(np.any(self.model.dof_damping > 0)))
         self._limits_strain()
-        self._any_limited = bool(self.limited.any())
-        # The same argument objects every step (the contact stage's a and force are its own).
-        self._prediction, self._conclusion = Bound(predict), Bound(conclude)
-        self._arrays: tuple[PredictArrays, ConcludeArrays] | None = None  # made at the first step in one call
+        self._one_call_stages()
 
     def step(self) -> None:
         m, d, lay = self.model, self.data, self.layout
         one_call = self._in_one_call()
         if one_call:
-            self._predict()
+            limit = self._strain_limit_now()
+            self._predict(limit)
         else:
             self.elastic()
             self.unconstrained()
@@ -310,7 +304,7 @@ class Implicit(StrainLimit, Step):
         else:
             a = self._contact(d)
             if a is not None and one_call and not self.friction:
-                self._conclude(a)  # what follows, the acceleration written too, in one call
+                self._conclude(a, limit)  # what follows, the acceleration written too, in one call
                 concluded = True
             elif a is not None:
                 # Contact impulses turn edges too: limit the strain they leave, moving only
@@ -336,54 +330,11 @@ class Implicit(StrainLimit, Step):
         """Whether this step's prediction (positions, terms, a0, strain limit, the force
         handed to MuJoCo) and, after the contact solve, its conclusion (strain limit,
         acceleration handed to MuJoCo) are each one compiled call
-        (:mod:`derods._numba.implicit_stages`): in this mode, when nothing must run between
+        (:class:`derods.sim.implicit_stages.OneCallStages`): in this mode, when nothing must run between
         their kernels (held vertices on moving bodies, reactions on holders, riders,
         prescribed vertices, holders with dofs) and the rods are one chunk (no threads)."""
         return (type(self) is Implicit and not self.split.parallel
                 and not (self._moving or self.reactions or self.riders or self.prescribed or self.holders))
-
-    def _stage_arrays(self) -> tuple[PredictArrays, ConcludeArrays]:
-        """The arrays the one-call stages take (:mod:`derods._numba.implicit_stages`), made
-        once (again if the implicit system's bundle was replaced: a new band)."""
-        if self._arrays is None or self._arrays[0].system is not self.system.arrays:
-            lay, r = self.layout, self.rods
-            self._arrays = (
-                PredictArrays(lay.x0, self.qpos, lay.qpos_adr, lay.free_vertex, self.xpos, lay.moved_vertex,
-                              lay.moved_body, self.x, r, self.ends, self.frames, self.xmat, lay.place, self._bands,
-                              self._band_of_rod, self.terms, self.system.arrays, lay.places, self.params, self.qvel,
-                              self.xfrc_applied, self.v, self.other, self._rhs, self._kv, self.a0, self.inv_mass,
-                              self.limited, self._xp, lay.dofs, lay.mass, self.qfrc_applied),
-                ConcludeArrays(self.x, r.v_off, r.e_off, r.rest_len, lay.place, self.v, self.h, self.inv_mass,
-                               lay.free_vertex, np.empty_like(self.inv_mass), self._limited_rest, self._xp, lay.dofs,
-                               lay.mass, self.qacc, self.qfrc_smooth, self.qfrc_constraint, bool(self.resolves)))
-        return self._arrays
-
-    def _strain_limit_now(self) -> float:
-        """The strain limit the stages apply: World's, or inf when no rod is limited."""
-        return self.strain_limit if self._any_limited else math.inf
-
-    def _predict(self) -> None:
-        """elastic(), unconstrained(), the strain limit on a0 and the force written for
-        MuJoCo, as one compiled call (the same kernels in the same order: the same results)."""
-        self.x_start = self.x
-        try:
-            bad, self.n_projected = self._prediction(self._stage_arrays()[0], MAX_STRAIN, self._strain_limit_now(),
-                                                     PROJECTION_TOL, PROJECTION_MAX_ITER)
-        except ValueError as err:  # a banded Cholesky found A (or a projection's matrix) not positive definite
-            self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)
-        if bad >= 0:
-            self.diagnosis.strain(bad, float(self.terms.strain[bad]), self.n_steps, self.data.time)
-
-    def _conclude(self, a: np.ndarray) -> None:
-        """The strain limit on the contact solve's acceleration a (n,) [m/s^2] (touching
-        vertices made lighter, rods it leaves projected by their own masses) and a written
-        for MuJoCo's integrator, as one compiled call (as _limit_strain(a, _touching())
-        and write_acceleration: the same results)."""
-        try:
-            self.n_projected += self._conclusion(self._stage_arrays()[1], a, self.contact.force, TOUCHING_WEIGHT,
-                                                 self._strain_limit_now(), PROJECTION_TOL, PROJECTION_MAX_ITER)
-        except ValueError as err:  # the projection's banded Cholesky, in a state gone wild
-            self.diagnosis.not_positive_definite(str(err), self.n_steps, self.data.time)
 
     #: The static friction's anchors are carried from step to step (see Step.carried_flags).
     carried_flags = ("friction_state",)

@@ -66,6 +66,11 @@ class StrainLimit:
         touching_into(self.contact.force, self.inv_mass, self.layout.free_vertex, TOUCHING_WEIGHT, inv_mass)
         return inv_mass
 
+    def _strain_limit_now(self) -> float:
+        """The strain limit a step applies: World's ``strain_limit``, or inf (no projection
+        runs) when it is inf or no rod is limited."""
+        return self.strain_limit if self.limited.any() else math.inf
+
     def _limit_strain(self, a: np.ndarray, inv_mass: np.ndarray | None = None,
                       held_x: np.ndarray | None = None) -> tuple[int, int]:
         """Project the rods that ``a`` (local accelerations, changed in place) would strain
@@ -73,7 +78,7 @@ class StrainLimit:
         ``inv_mass`` (n_vertices,) (default: their own), the held ones predicted at
         ``held_x`` (n_vertices, 3) [m] (default: where they are); returns how many were,
         and how many could not be (held taut between pins: they keep their step)."""
-        if not self.limited.any() or math.isinf(self.strain_limit):
+        if math.isinf(self._strain_limit_now()):
             return 0, 0
         held_x = self.x if held_x is None else held_x
         limited = self.limited if inv_mass is None else self._limited_rest
