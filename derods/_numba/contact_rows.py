@@ -14,6 +14,7 @@ import numba as nb
 import numpy as np
 
 from ..stencil import XX_BANDWIDTH
+from .leaf import leaf
 
 #: The window of a banded row in the usual band (a rod's: 8 sub-diagonals): rows whose
 #: window lies whole within the dofs run with it as a constant bound, so that their loops
@@ -46,6 +47,15 @@ def rows_band(col0, jw, weights, n):
     [col0_i, col0_i + W) with entries jw_i (W = jw.shape[1])."""
     w_ = jw.shape[1]
     out = np.zeros((w_, n))
+
+    def add(i, c0, wi, top):  # out += w_i j_i j_i^T (lower band), row i's first top entries
+        for q in range(top):
+            jq = jw[i, q] * wi
+            if jq == 0.0:
+                continue
+            for p in range(q, top):
+                out[p - q, c0 + q] += jw[i, p] * jq
+
     for i in range(len(col0)):
         wi = weights[i]
         if wi == 0.0:
@@ -53,21 +63,10 @@ def rows_band(col0, jw, weights, n):
         c0 = col0[i]
         top = min(w_, n - c0)  # the window's entries within the dofs
         if top == WINDOW:
-            _row_into_band(out, jw, i, c0, wi, WINDOW)
+            add(i, c0, wi, WINDOW)
         else:
-            _row_into_band(out, jw, i, c0, wi, top)
+            add(i, c0, wi, top)
     return out
-
-
-@nb.njit(cache=True, inline="always")
-def _row_into_band(out, jw, i, c0, wi, top):
-    """out += w_i j_i j_i^T (lower band) for row i's first ``top`` window entries."""
-    for q in range(top):
-        jq = jw[i, q] * wi
-        if jq == 0.0:
-            continue
-        for p in range(q, top):
-            out[p - q, c0 + q] += jw[i, p] * jq
 
 
 @nb.njit(cache=True)
@@ -76,28 +75,26 @@ def rows_diag(col0, jw, zb):
     w_ = jw.shape[1]
     n = zb.shape[1]
     out = np.zeros(len(col0))
+
+    def quadratic(i, c0, top):  # j_i^T Z j_i over row i's first top entries
+        acc = 0.0
+        for q in range(top):
+            jq = jw[i, q]
+            if jq == 0.0:
+                continue
+            acc += jq * jq * zb[0, c0 + q]
+            for p in range(q + 1, top):
+                acc += 2.0 * jw[i, p] * jq * zb[p - q, c0 + q]
+        return acc
+
     for i in range(len(col0)):
         c0 = col0[i]
         top = min(w_, n - c0)
         if top == WINDOW:
-            out[i] = _row_quadratic(jw, zb, i, c0, WINDOW)
+            out[i] = quadratic(i, c0, WINDOW)
         else:
-            out[i] = _row_quadratic(jw, zb, i, c0, top)
+            out[i] = quadratic(i, c0, top)
     return out
-
-
-@nb.njit(cache=True, inline="always")
-def _row_quadratic(jw, zb, i, c0, top):
-    """j_i^T Z j_i over row i's first ``top`` window entries."""
-    acc = 0.0
-    for q in range(top):
-        jq = jw[i, q]
-        if jq == 0.0:
-            continue
-        acc += jq * jq * zb[0, c0 + q]
-        for p in range(q + 1, top):
-            acc += 2.0 * jw[i, p] * jq * zb[p - q, c0 + q]
-    return acc
 
 
 @nb.njit(cache=True)
@@ -105,47 +102,43 @@ def rows_apply(col0, jw, a):
     """J a for rows confined to windows [col0_i, col0_i + W) with entries jw_i; shape (k,)."""
     n = a.shape[0]
     out = np.zeros(len(col0))
+
+    def dot(i, c0, top):  # j_i . a over row i's first top entries
+        acc = 0.0
+        for q in range(top):
+            acc += jw[i, q] * a[c0 + q]
+        return acc
+
     for i in range(len(col0)):
         c0 = col0[i]
         top = min(jw.shape[1], n - c0)
         if top == WINDOW:
-            out[i] = _row_dot(jw, a, i, c0, WINDOW)
+            out[i] = dot(i, c0, WINDOW)
         else:
-            out[i] = _row_dot(jw, a, i, c0, top)
+            out[i] = dot(i, c0, top)
     return out
-
-
-@nb.njit(cache=True, inline="always")
-def _row_dot(jw, a, i, c0, top):
-    """j_i . a over row i's first ``top`` window entries."""
-    acc = 0.0
-    for q in range(top):
-        acc += jw[i, q] * a[c0 + q]
-    return acc
 
 
 @nb.njit(cache=True)
 def rows_transpose_apply(col0, jw, lam, n):
     """J^T lam for windowed rows (as :func:`rows_apply`); shape (n,)."""
     out = np.zeros(n)
+
+    def add(li, i, c0, top):  # out += lam_i j_i over row i's first top entries
+        for q in range(top):
+            out[c0 + q] += jw[i, q] * li
+
     for i in range(len(col0)):
         c0 = col0[i]
         top = min(jw.shape[1], n - c0)
         if top == WINDOW:
-            _add_row(out, jw, lam[i], i, c0, WINDOW)
+            add(lam[i], i, c0, WINDOW)
         else:
-            _add_row(out, jw, lam[i], i, c0, top)
+            add(lam[i], i, c0, top)
     return out
 
 
-@nb.njit(cache=True, inline="always")
-def _add_row(out, jw, li, i, c0, top):
-    """out += lam_i j_i over row i's first ``top`` window entries."""
-    for q in range(top):
-        out[c0 + q] += jw[i, q] * li
-
-
-@nb.njit(cache=True)
+@leaf
 def exact_line_search(jar, jd, d, d_a, d_g, max_iter=20):
     """Step t minimizing f(t) = t^2 d_a / 2 + t d_g + sum_i d_i min(jar_i + t jd_i, 0)^2 / 2
     by Newton's method on the piecewise linear, increasing f'(t), from t = 1."""

@@ -16,6 +16,7 @@ import numba as nb
 import numpy as np
 
 from .banded import cholesky_into, matvec_into, solve_into
+from .leaf import leaf
 
 
 class System(NamedTuple):
@@ -65,7 +66,7 @@ class StepParams(NamedTuple):
     gravity: np.ndarray
 
 
-@nb.njit(cache=True)
+@leaf
 def factor_system(system, m_coef, s):
     """A's band a_band = s k_band + diag(m_coef mass); lt its Cholesky factor (n, rows); for
     each twist term i: z[lo_i:hi_i] = B^-1 g_i (block-local), den_i = 1 + s c_i g_i.z_i;
@@ -92,7 +93,7 @@ def factor_system(system, m_coef, s):
         den[i] = 1.0 + s * tw_c[i] * acc
 
 
-@nb.njit(cache=True)
+@leaf
 def sm_solve_into(system, x):
     """x <- A^-1 x in place (A factored, ``system`` a :class:`System`): a banded solve,
     then one Sherman-Morrison update per twist term within its rod's range (A's band is
@@ -122,7 +123,7 @@ def sm_solve_columns_into(system, x):
         x[:, c] = col
 
 
-@nb.njit(cache=True)
+@leaf
 def k_matvec_into(system, w, y):
     """y = K w = K_band w + sum_i c_i g_i (g_i . w) (``system`` a :class:`System`)."""
     g, tw_lo, tw_hi, tw_c = system.g, system.tw_lo, system.tw_hi, system.tw_c
@@ -136,7 +137,7 @@ def k_matvec_into(system, w, y):
             y[j] += tw_c[i] * g[j] * gw
 
 
-@nb.njit(cache=True)
+@leaf
 def gather_dofs(per_vertex, free_vertex, out):
     """out[3 p + a] = per_vertex[free_vertex[p], a]: a per-vertex field on the free dofs."""
     for p in range(len(free_vertex)):
@@ -145,7 +146,7 @@ def gather_dofs(per_vertex, free_vertex, out):
             out[3 * p + a] = per_vertex[v, a]
 
 
-@nb.njit(cache=True)
+@leaf
 def twist_terms(system, terms, places):
     """The rods' twist terms into ``system`` (:class:`System`): each term's c from its rod's
     ``terms.coef`` and the directions g from ``terms.g_tw`` on the free dofs
@@ -231,7 +232,7 @@ def explicit_force(system, terms, places, params, qvel, v, kv, qfrc_applied):
             qfrc_applied[dofs[k]] = f
 
 
-@nb.njit(cache=True)
+@leaf
 def twist_update_columns(system, ztw, zspan, cols):
     """Sherman-Morrison for each twist term of ``system`` (:class:`derods._numba.implicit.System`)
     in turn, on every column of cols (n, m): x -= z_i (s c_i g_i.x) / (1 + s c_i g_i.z_i),
@@ -253,7 +254,7 @@ def twist_update_columns(system, ztw, zspan, cols):
                 cols[j, c] -= ztw[j, i] * f
 
 
-@nb.njit(cache=True)
+@leaf
 def twist_spans(ztw, zspan):
     """Each column's nonzero range of ztw (n, T) into zspan (T, 2): B is block diagonal
     by rod, so B^-1 g_i is exactly zero beyond the rods a twist term's rod is banded with,

@@ -17,6 +17,7 @@ import numba as nb
 import numpy as np
 
 from ..geometry import ANGLE_SERIES_MAX, ANGLE_SERIES_TERMS, CHI_MIN
+from .leaf import leaf
 
 
 class Scratch(NamedTuple):
@@ -249,7 +250,7 @@ def reference_twist(u, t, ea, eb, chi):
     return math.atan2(sin_, cos_)
 
 
-@nb.njit(cache=True)
+@leaf
 def add_joint_hessian(ab, place, va, vm, vn, h, blocks):
     """Add a joint's Hessian h (6 x 6, over its edges a = x_vm - x_va, b = x_vn - x_vm)
     to the band over its three vertices: d/dx_va = -d/da, d/dx_vm = d/da - d/db,
