@@ -294,14 +294,29 @@ def solve_blocks(efc, cone_contacts, blocks, b0, b1, local_of_dof, dof_off, widt
             val_b[q] = val[p]
         local_b = np.arange(m + 1)
         local_b[m] = -1
-        tw = np.flatnonzero(block_of_rod[rod_of_tw] == b)
+        n_tw = 0
+        for q in range(len(rod_of_tw)):
+            if block_of_rod[rod_of_tw[q]] == b:
+                n_tw += 1
+        tw = np.empty(n_tw, dtype=np.int64)  # the block's twist terms
+        n_tw = 0
+        for q in range(len(rod_of_tw)):
+            if block_of_rod[rod_of_tw[q]] == b:
+                tw[n_tw] = q
+                n_tw += 1
         tw_lo_b = np.empty(len(tw), dtype=np.int64)
         tw_hi_b = np.empty(len(tw), dtype=np.int64)
         for q in range(len(tw)):
             tw_lo_b[q] = compact[tw_lo[tw[q]]]
             tw_hi_b[q] = compact[tw_hi[tw[q]] - 1] + 1
+        lo = ids[0]
         if m == len(a0) and len(tw) == len(tw_lo):  # every dof in order: the system as it is
             block = system
+        elif ids[m - 1] - lo == m - 1:  # a range of dofs (one rod, or rods in a row): copied as slices
+            block = System(system.k_band[:, lo:lo + m].copy(), system.mass[lo:lo + m].copy(),
+                           system.g[lo:lo + m].copy(), system.tw_rod[tw], tw_lo_b, tw_hi_b, system.tw_c[tw],
+                           system.a_band[:, lo:lo + m].copy(), system.lt[lo:lo + m].copy(),
+                           system.z[lo:lo + m].copy(), system.den[tw], system.weights)
         else:
             block = System(np.ascontiguousarray(system.k_band[:, ids]), system.mass[ids], system.g[ids],
                            system.tw_rod[tw], tw_lo_b, tw_hi_b, system.tw_c[tw],
@@ -309,7 +324,12 @@ def solve_blocks(efc, cone_contacts, blocks, b0, b1, local_of_dof, dof_off, widt
                            system.den[tw], system.weights)
         a_b = np.empty(m)
         f_b = np.empty(m)
-        rod_b = np.searchsorted(dof_off, ids, side="right") - 1
+        rod_b = np.empty(m, dtype=np.int64)  # each dof's rod (ids ascend: a walk along dof_off)
+        rod = 0
+        for q in range(m):
+            while dof_off[rod + 1] <= ids[q]:
+                rod += 1
+            rod_b[q] = rod
         solve_block(row_b, col_b, val_b, efc, cone_contacts, block_rows, supported, local_b, width, block, rod_b,
                     a0[ids], a_b, f_b, max_iter, tol)
         for q in range(m):
@@ -338,7 +358,6 @@ def solve_block(row, col, val, efc_data, cone_contacts, efc_rows, supported, loc
     mj_contactForce and the viewer read).
     """
     n = len(a0)
-    efc_aref, efc_r, efc_diag_a = efc_data.aref[efc_rows], efc_data.r[efc_rows], efc_data.diag_a[efc_rows]
     group = cone_groups(efc_rows, efc_data.type, cone_contacts)
     efc, kb, col0, jw, far, ext = split_rows(row, col, val, local_of_dof, group, supported[efc_rows],
                                              efc_data.force[efc_rows], n, width)
@@ -360,14 +379,16 @@ def solve_block(row, col, val, efc_data, cone_contacts, efc_rows, supported, loc
         aref = np.empty(len(efc))
         r_over_diag = np.empty(len(efc))
         for i in range(len(efc)):
-            aref[i] = efc_aref[efc[i]]
-            r_over_diag[i] = efc_r[efc[i]] / efc_diag_a[efc[i]]
-        d = row_weights(system, rows, np.zeros((n, 0)), np.zeros((len(efc), 0)), np.zeros((0, 0)),
-                        np.zeros(0, dtype=np.int64), r_over_diag, rod_of_dof, cones)
+            e = efc_rows[efc[i]]
+            aref[i] = efc_data.aref[e]
+            r_over_diag[i] = efc_data.r[e] / efc_data.diag_a[e]
+        border = no_border(n, len(efc))  # none: also what row_weights takes for none
+        d = row_weights(system, rows, border.h_fq, border.j_q, border.h_qq, np.zeros(0, dtype=np.int64), r_over_diag,
+                        rod_of_dof, cones)
         if len(cones.dim):
-            a, _, lam, _ = newton(system, a, rows, aref, d, no_border(n, len(efc)), cones, max_iter, tol)
+            a, _, lam, _ = newton(system, a, rows, aref, d, border, cones, max_iter, tol)
         else:  # compiled without cones
-            a, _, lam, _ = newton(system, a, rows, aref, d, no_border(n, len(efc)), None, max_iter, tol)
+            a, _, lam, _ = newton(system, a, rows, aref, d, border, None, max_iter, tol)
         force_out += transpose_apply_all(rows, lam, n)
         for i in range(len(efc)):  # derods' row forces, where MuJoCo's readers look for them
             efc_data.force[efc_rows[efc[i]]] = lam[i]

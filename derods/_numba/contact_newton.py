@@ -16,7 +16,8 @@ import numpy as np
 
 from .banded import cholesky_into, solve_columns, solve_into
 from .dense import spd_factor as _spd_factor, spd_solve_factored as _spd_solve_factored
-from .contact_rows import FAR_DENSE_MAX, Rows, apply_all, exact_line_search, far_columns, rows_band, transpose_apply_all
+from .contact_rows import FAR_DENSE_MAX, Rows, apply_all_into, exact_line_search, far_columns, rows_band_into
+from .contact_rows import transpose_apply_all_into
 from .cones import cone_forces, cone_line_search, virtual_jar, virtual_rows, write_virtual
 from .contact_cg import CG_TOL_MAX, cg_direction, far_blocks_into_band, forcing
 from .implicit import k_matvec_into, twist_spans, twist_update_columns
@@ -70,11 +71,19 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
                 in_cone[cones.rows[c, j]] = True
         basis = np.zeros((nc, 6, 6))
         wv = np.zeros((nc, 6))
-    a = a0.copy()
-    aq = border.a0.copy()
-    am = np.zeros(n)  # H (a - a0), updated along the steps instead of recomputed
-    amq = np.zeros(m)
-    jar = apply_all(rows, a)
+    # The solve's vectors as the rows of three allocations (per dof, per border dof, per
+    # row): an allocation costs as much as a window's products, and blocks of rods solve
+    # their contacts every step.
+    vn, vq, vk = np.empty((6, n)), np.empty((5, m)), np.empty((4, k))
+    a, am, kd, ad, delta, grad = vn[0], vn[1], vn[2], vn[3], vn[4], vn[5]
+    aq, amq, adq, dq, gq = vq[0], vq[1], vq[2], vq[3], vq[4]
+    jar, w, wjar, jd = vk[0], vk[1], vk[2], vk[3]
+    a[:] = a0
+    aq[:] = border.a0
+    am[:] = 0.0  # H (a - a0), updated along the steps instead of recomputed
+    amq[:] = 0.0
+    dq[:] = 0.0
+    apply_all_into(rows, a, jar)
     if m:
         _add_border_apply(jq, aq, jar)
     for i in range(k):
@@ -88,8 +97,6 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
     for i in range(k):
         m2 = max(m2, abs(d[i] * aref[i]))
     scale = m1 + m2 + 1e-300
-    w = np.empty(k)
-    wjar = np.empty(k)
     ab = np.empty_like(a_band)
     lt = np.empty((n, a_band.shape[0]))
     ztw = np.zeros((n, n_tw))
@@ -101,18 +108,14 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
     w_factored = np.full(k if iterative else kb, -1.0)  # the weights B was last factored with
     zf = np.zeros((n, 0 if iterative else kf))
     zf_ready = False
-    if iterative:
+    if iterative or kf == 0:
         far_cols, far_first = zf, n
     else:
         far_cols, far_first = far_columns(vrows, n)
-    kd = np.empty(n)
-    ad = np.empty(n)
-    adq = np.empty(m)
-    delta = np.empty(n)
-    dq = np.zeros(m)
     y = np.empty((n, 1))
     small = np.zeros((0, 0))
     act = np.zeros(0, dtype=np.int64)
+    extra = np.empty((jw.shape[1], n))
     eta, g_cg = CG_TOL_MAX, 0.0  # the last CG solve's tolerance and gradient
     it = 0
     for it in range(1, max_iter + 1):
@@ -127,12 +130,11 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
                 write_virtual(rows, vrows, jq, jqv, kb, cones, basis)
                 if not iterative:
                     far_cols, far_first = far_columns(vrows, n)
-        grad = transpose_apply_all(vrows, wjar, n)
+        transpose_apply_all_into(vrows, wjar, grad)
         gmax = 0.0
         for j in range(n):
             grad[j] += am[j]
             gmax = max(gmax, abs(grad[j]))
-        gq = np.zeros(m)
         for j in range(m):
             acc = amq[j]
             for i in range(k):
@@ -147,7 +149,7 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
                 same = False
                 break
         if not same:
-            extra = rows_band(col0, jw, w[:kb], n)
+            rows_band_into(col0, jw, w, extra)  # the banded rows' weights: w's first kb
             ab[:] = a_band
             for dd in range(extra.shape[0]):
                 for j in range(n):
@@ -233,7 +235,7 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
                 for c in range(m):
                     acc += zc_[j, c] * dq[c]
                 delta[j] -= acc
-        jd = apply_all(rows, delta)
+        apply_all_into(rows, delta, jd)
         k_matvec_into(system, delta, kd)
         d_a, d_g = 0.0, 0.0
         for j in range(n):
@@ -275,7 +277,7 @@ def newton(system, a0, rows, aref, d, border, cones, max_iter, tol):
             jar[i] += t * jd[i]
         if smax <= tol * (amax + 1e-300):
             break
-    jar = apply_all(rows, a)
+    apply_all_into(rows, a, jar)
     if m:
         _add_border_apply(jq, aq, jar)
     lam = np.zeros(k)

@@ -45,8 +45,16 @@ class Rows(NamedTuple):
 def rows_band(col0, jw, weights, n):
     """Lower band (W, n) of sum_i w_i j_i j_i^T for rows j_i confined to windows
     [col0_i, col0_i + W) with entries jw_i (W = jw.shape[1])."""
-    w_ = jw.shape[1]
-    out = np.zeros((w_, n))
+    out = np.empty((jw.shape[1], n))
+    rows_band_into(col0, jw, weights, out)
+    return out
+
+
+@leaf
+def rows_band_into(col0, jw, weights, out):
+    """:func:`rows_band` into out (W, n)."""
+    out[:] = 0.0
+    w_, n = out.shape
 
     def add(i, c0, wi, top):  # out += w_i j_i j_i^T (lower band), row i's first top entries
         for q in range(top):
@@ -66,7 +74,6 @@ def rows_band(col0, jw, weights, n):
             add(i, c0, wi, WINDOW)
         else:
             add(i, c0, wi, top)
-    return out
 
 
 @nb.njit(cache=True)
@@ -100,8 +107,15 @@ def rows_diag(col0, jw, zb):
 @nb.njit(cache=True)
 def rows_apply(col0, jw, a):
     """J a for rows confined to windows [col0_i, col0_i + W) with entries jw_i; shape (k,)."""
+    out = np.empty(len(col0))
+    rows_apply_into(col0, jw, a, out)
+    return out
+
+
+@leaf
+def rows_apply_into(col0, jw, a, out):
+    """:func:`rows_apply` into out[:k] (k rows)."""
     n = a.shape[0]
-    out = np.zeros(len(col0))
 
     def dot(i, c0, top):  # j_i . a over row i's first top entries
         acc = 0.0
@@ -116,13 +130,21 @@ def rows_apply(col0, jw, a):
             out[i] = dot(i, c0, WINDOW)
         else:
             out[i] = dot(i, c0, top)
-    return out
 
 
 @nb.njit(cache=True)
 def rows_transpose_apply(col0, jw, lam, n):
     """J^T lam for windowed rows (as :func:`rows_apply`); shape (n,)."""
-    out = np.zeros(n)
+    out = np.empty(n)
+    rows_transpose_apply_into(col0, jw, lam, out)
+    return out
+
+
+@leaf
+def rows_transpose_apply_into(col0, jw, lam, out):
+    """:func:`rows_transpose_apply` into out (n,)."""
+    out[:] = 0.0
+    n = out.shape[0]
 
     def add(li, i, c0, top):  # out += lam_i j_i over row i's first top entries
         for q in range(top):
@@ -135,7 +157,6 @@ def rows_transpose_apply(col0, jw, lam, n):
             add(lam[i], i, c0, WINDOW)
         else:
             add(lam[i], i, c0, top)
-    return out
 
 
 @leaf
@@ -236,23 +257,40 @@ def split_bordered_rows(row, col, val, local_of_dof, border_of_dof, group, suppo
     for r in range(len(group)):
         g = group[r]
         touches[r], elsewhere[r], lo[r], hi[r] = touches[g], elsewhere[g], lo[g], hi[g]
-    mine = touches & ~elsewhere & supported
+    # Loops, not array expressions: each temporary array is an allocation, and this runs
+    # once per block of rods every step.
+    mine = np.empty(nefc, dtype=np.bool_)
+    others = False  # rows that touch the dofs and keep MuJoCo's force
+    for r in range(nefc):
+        mine[r] = touches[r] and not elsewhere[r] and supported[r]
+        others |= touches[r] and not mine[r]
     ext = np.zeros(n)
     ext_q = np.zeros(m)
-    for p in range(len(row)):
+    for p in range(len(row) if others else 0):
         r = row[p]
         loc = local_of_dof[col[p]]
         if loc >= 0 and touches[r] and not mine[r]:
             ext[loc] += val[p] * force[r]
         elif m and loc < 0 and touches[r] and not mine[r] and border_of_dof[col[p]] >= 0:
             ext_q[border_of_dof[col[p]]] += val[p] * force[r]
+    kb, n_mine = 0, 0
     for r in range(nefc):
         if hi[r] < 0:  # border dofs only: an empty window at the start
             lo[r] = 0
-    banded = mine & (hi - lo < width)
-    far = mine & ~banded
-    efc = np.concatenate((np.flatnonzero(banded), np.flatnonzero(far)))
-    kb = int(banded.sum())
+        if mine[r]:
+            n_mine += 1
+            if hi[r] - lo[r] < width:
+                kb += 1
+    efc = np.empty(n_mine, dtype=np.int64)  # derods' rows: the banded ones, then the far ones
+    q_b, q_f = 0, kb
+    for r in range(nefc):
+        if mine[r]:
+            if hi[r] - lo[r] < width:
+                efc[q_b] = r
+                q_b += 1
+            else:
+                efc[q_f] = r
+                q_f += 1
     k_of_row = np.full(nefc, -1)
     for k in range(len(efc)):
         k_of_row[efc[k]] = k
@@ -280,7 +318,7 @@ def split_bordered_rows(row, col, val, local_of_dof, border_of_dof, group, suppo
     fcol = np.empty(fptr[kf], dtype=np.int64)
     fval = np.empty(fptr[kf])
     fill = fptr[:kf].copy()
-    for p in range(len(row)):
+    for p in range(len(row) if kf else 0):
         k = k_of_row[row[p]]
         if k < kb or val[p] == 0.0:
             continue
@@ -295,7 +333,9 @@ def split_bordered_rows(row, col, val, local_of_dof, border_of_dof, group, suppo
         fcol[q] = loc
         fval[q] = val[p]
         fill[k - kb] += 1
-    col0 = lo[efc[:kb]].copy()
+    col0 = np.empty(kb, dtype=np.int64)
+    for k in range(kb):
+        col0[k] = lo[efc[k]]
     return efc, kb, col0, jw, (fptr, fcol, fval), jq, ext, ext_q
 
 
@@ -348,31 +388,43 @@ def far_rows_csr(jf):
 @nb.njit(cache=True)
 def apply_all(rows, a):
     """J a over the banded rows (first) and the far rows (:class:`Rows`), shape (k_b + k_f,)."""
+    out = np.empty(len(rows.col0) + len(rows.fptr) - 1)
+    apply_all_into(rows, a, out)
+    return out
+
+
+@leaf
+def apply_all_into(rows, a, out):
+    """:func:`apply_all` into out (k_b + k_f,)."""
     col0, jw, fptr, fcol, fval = rows
     kb = len(col0)
-    kf = len(fptr) - 1
-    out = np.empty(kb + kf)
-    out[:kb] = rows_apply(col0, jw, a)
-    for r in range(kf):
+    rows_apply_into(col0, jw, a, out)
+    for r in range(len(fptr) - 1):
         acc = 0.0
         for q in range(fptr[r], fptr[r + 1]):
             acc += fval[q] * a[fcol[q]]
         out[kb + r] = acc
-    return out
 
 
 @nb.njit(cache=True)
 def transpose_apply_all(rows, lam, n):
     """J^T lam over the banded and the far rows (:class:`Rows`), shape (n,)."""
+    out = np.empty(n)
+    transpose_apply_all_into(rows, lam, out)
+    return out
+
+
+@leaf
+def transpose_apply_all_into(rows, lam, out):
+    """:func:`transpose_apply_all` into out (n,)."""
     col0, jw, fptr, fcol, fval = rows
     kb = len(col0)
-    out = rows_transpose_apply(col0, jw, lam[:kb], n)
+    rows_transpose_apply_into(col0, jw, lam, out)
     for r in range(len(fptr) - 1):
         lr = lam[kb + r]
         if lr != 0.0:
             for q in range(fptr[r], fptr[r + 1]):
                 out[fcol[q]] += fval[q] * lr
-    return out
 
 
 @nb.njit(cache=True)
