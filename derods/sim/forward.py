@@ -26,6 +26,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from .._numba.calls import Bound
 from .._numba.solved_rows import rods_solve_all
 
 
@@ -52,6 +53,7 @@ class Forward:
         self.skipped = False
         #: Contacts the world excludes after MuJoCo's collision (:mod:`derods.sim.exclusion`).
         self.exclusions = None
+        self._solve_all = Bound(rods_solve_all)  # its rows, views of the data: keyed by it
 
     def __call__(self, d: mujoco.MjData) -> None:
         """MuJoCo's forward pass on d, its constraint solver skipped where derods solves
@@ -71,9 +73,11 @@ class Forward:
             mujoco.mj_sensorPos(m, d)
         if self.energy:
             mujoco.mj_energyPos(m, d)
-        if not self.enabled or not d.nefc or not rods_solve_all(self.is_sparse, d.nefc, m.nv, d.efc_J, d.efc_J_rownnz,
-                                                                d.efc_J_rowadr, d.efc_J_colind, d.efc_type,
-                                                                self.supported, self.solved_dof):
+        nefc = d.nefc
+        if not self.enabled or not nefc or not self._solve_all.keyed(
+                (bool, int, int, d, d, d, d, d, self.supported, self.solved_dof),
+                (self.is_sparse, nefc, m.nv, d.efc_J, d.efc_J_rownnz, d.efc_J_rowadr, d.efc_J_colind, d.efc_type,
+                 self.supported, self.solved_dof)):
             mujoco.mj_forwardSkip(m, d, int(mujoco.mjtStage.mjSTAGE_POS), 0)
             return
         mujoco.mj_fwdVelocity(m, d)
@@ -88,7 +92,7 @@ class Forward:
         mujoco.mj_fwdAcceleration(m, d)
         d.qacc[:] = d.qacc_smooth
         d.qfrc_constraint[:] = 0.0
-        d.efc_force[:d.nefc] = 0.0
+        d.efc_force[:nefc] = 0.0
         self.skipped = True  # the acceleration-stage sensors come after derods' solve
 
     def sensors_after(self, d: mujoco.MjData) -> None:
