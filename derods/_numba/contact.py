@@ -26,6 +26,7 @@ from .dense import inverse_quadratic_rows
 from .contact_rows import FAR_DENSE_MAX, Rows, apply_all, efc_triplets, far_columns, rows_apply, rows_diag, split_rows
 from .contact_rows import transpose_apply_all
 from .implicit import System, sm_solve_into
+from .rod_blocks import banded_rows, rod_system, rods_own_rows, rows_by_rod
 
 
 class Efc(NamedTuple):
@@ -206,14 +207,47 @@ def contact_step(efc, cone_contacts, supported_types, local_of_dof, dof_off, wid
     local_of_dof (nv,): each MuJoCo dof's local dof, -1 elsewhere; dof_off (n_rods + 1,):
     each rod's local dof range; width: a banded row's window. Writes a_out (n,) [m/s^2]
     and force_out (n,) [N]. Returns 0 if no row touches a rod dof (nothing written), 1
-    otherwise.
+    otherwise. When every row lies within one rod's window (no elliptic cones), the blocks
+    are the rods, found in one pass (:mod:`derods._numba.rod_blocks`): the same blocks,
+    rows and arithmetic as the general path, without its triplets, partition and splits.
     """
+    if cone_contacts is None:  # no elliptic cones: maybe every row is one rod's (derods._numba.rod_blocks)
+        own, rod, lo = rods_own_rows(efc, supported_types, local_of_dof, dof_off, width)
+        if own:
+            _solve_rods(efc, rod, lo, local_of_dof, dof_off, width, system, a0, a_out, force_out, max_iter, tol)
+            return 1
     blocks = contact_blocks(efc, supported_types, local_of_dof, dof_off, system, a0, a_out, force_out)
     if blocks.n_blocks == 0:
         return 0
     solve_blocks(efc, cone_contacts, blocks, 0, blocks.n_blocks, local_of_dof, dof_off, width, system, a0, a_out,
                  force_out, max_iter, tol)
     return 1
+
+
+@nb.njit(cache=True)
+def _solve_rods(efc, rod, lo, local_of_dof, dof_off, width, system, a0, a_out, force_out, max_iter, tol):
+    """:func:`contact_step` when each row lies within one rod's window (rod, lo (nefc,): each
+    row's rod and first local dof, :func:`derods._numba.rod_blocks.rods_own_rows`): each rod
+    the rows touch is a block of banded rows, solved as :func:`solve_block` would."""
+    n_rods = len(dof_off) - 1
+    start, rows = rows_by_rod(rod, n_rods)
+    a_out[:] = a0
+    force_out[:] = 0.0
+    no_group = np.zeros(0, dtype=np.int64)
+    no_far = (np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0))
+    for i in range(n_rods):
+        k = start[i + 1] - start[i]
+        if k == 0:
+            continue
+        d0, d1 = dof_off[i], dof_off[i + 1]
+        efc_rows = rows[start[i]:start[i + 1]]
+        col0, jw = banded_rows(efc, efc_rows, lo, local_of_dof, d0, width)
+        a_b = np.empty(d1 - d0)
+        f_b = np.empty(d1 - d0)
+        solve_split(np.arange(k), k, col0, jw, no_far, np.zeros(d1 - d0), efc, None, efc_rows, no_group,
+                    rod_system(system, d0, d1), np.full(d1 - d0, i), a0[d0:d1].copy(), a_b, f_b, max_iter, tol)
+        a_out[d0:d1] = a_b
+        force_out[d0:d1] = f_b
 
 
 class Blocks(NamedTuple):
@@ -357,10 +391,21 @@ def solve_block(row, col, val, efc_data, cone_contacts, efc_rows, supported, loc
     and each solved row's force into ``efc_data.force`` (MuJoCo's efc_force, which
     mj_contactForce and the viewer read).
     """
-    n = len(a0)
     group = cone_groups(efc_rows, efc_data.type, cone_contacts)
     efc, kb, col0, jw, far, ext = split_rows(row, col, val, local_of_dof, group, supported[efc_rows],
-                                             efc_data.force[efc_rows], n, width)
+                                             efc_data.force[efc_rows], len(a0), width)
+    solve_split(efc, kb, col0, jw, far, ext, efc_data, cone_contacts, efc_rows, group, system, rod_of_dof, a0, a_out,
+                force_out, max_iter, tol)
+
+
+@nb.njit(cache=True)
+def solve_split(efc, kb, col0, jw, far, ext, efc_data, cone_contacts, efc_rows, group, system, rod_of_dof, a0, a_out,
+                force_out, max_iter, tol):
+    """Steps 2 and 3 of :func:`solve_block`, on a block's rows as step 1 splits them
+    (:func:`derods._numba.contact_rows.split_rows`' efc, kb, col0, jw, far and ext; group:
+    :func:`derods._numba.cone_rows.cone_groups`'), into a_out, force_out and MuJoCo's
+    efc_force."""
+    n = len(a0)
     a = a0.copy()
     any_ext = False
     for j in range(n):
