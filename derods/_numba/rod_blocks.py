@@ -36,6 +36,9 @@ def rods_own_rows(efc, supported_types, local_of_dof, dof_off, width):
     if not efc.is_sparse or nefc == 0:
         return False, rod, lo
     rownnz, rowadr, colind, efc_type = efc.rownnz, efc.rowadr, efc.colind, efc.type
+    rod_of_local = np.empty(dof_off[-1], dtype=np.int64)
+    for i in range(len(dof_off) - 1):
+        rod_of_local[dof_off[i]:dof_off[i + 1]] = i
     for r in range(nefc):
         ok = False
         for q in range(len(supported_types)):
@@ -50,9 +53,7 @@ def rods_own_rows(efc, supported_types, local_of_dof, dof_off, width):
             first, last = min(first, loc), max(last, loc)
         if last - first >= width:
             return False, rod, lo
-        i = 0
-        while dof_off[i + 1] <= first:
-            i += 1
+        i = rod_of_local[first]
         if last >= dof_off[i + 1]:  # on two rods
             return False, rod, lo
         rod[r], lo[r] = i, first
