@@ -244,7 +244,7 @@ def _solve_rods(efc, rod, lo, local_of_dof, dof_off, width, system, a0, a_out, f
         col0, jw = banded_rows(efc, efc_rows, lo, local_of_dof, d0, width)
         a_b = np.empty(d1 - d0)
         f_b = np.empty(d1 - d0)
-        solve_split(np.arange(k), k, col0, jw, no_far, np.zeros(d1 - d0), efc, None, efc_rows, no_group,
+        solve_split(np.arange(k), col0, jw, no_far, np.zeros(d1 - d0), efc, None, efc_rows, no_group,
                     rod_system(system, d0, d1), np.full(d1 - d0, i), a0[d0:d1].copy(), a_b, f_b, max_iter, tol)
         a_out[d0:d1] = a_b
         force_out[d0:d1] = f_b
@@ -392,20 +392,21 @@ def solve_block(row, col, val, efc_data, cone_contacts, efc_rows, supported, loc
     mj_contactForce and the viewer read).
     """
     group = cone_groups(efc_rows, efc_data.type, cone_contacts)
-    efc, kb, col0, jw, far, ext = split_rows(row, col, val, local_of_dof, group, supported[efc_rows],
+    efc, _, col0, jw, far, ext = split_rows(row, col, val, local_of_dof, group, supported[efc_rows],
                                              efc_data.force[efc_rows], len(a0), width)
-    solve_split(efc, kb, col0, jw, far, ext, efc_data, cone_contacts, efc_rows, group, system, rod_of_dof, a0, a_out,
+    solve_split(efc, col0, jw, far, ext, efc_data, cone_contacts, efc_rows, group, system, rod_of_dof, a0, a_out,
                 force_out, max_iter, tol)
 
 
 @nb.njit(cache=True)
-def solve_split(efc, kb, col0, jw, far, ext, efc_data, cone_contacts, efc_rows, group, system, rod_of_dof, a0, a_out,
+def solve_split(efc, col0, jw, far, ext, efc_data, cone_contacts, efc_rows, group, system, rod_of_dof, a0, a_out,
                 force_out, max_iter, tol):
     """Steps 2 and 3 of :func:`solve_block`, on a block's rows as step 1 splits them
-    (:func:`derods._numba.contact_rows.split_rows`' efc, kb, col0, jw, far and ext; group:
-    :func:`derods._numba.cone_rows.cone_groups`'), into a_out, force_out and MuJoCo's
-    efc_force."""
+    (:func:`derods._numba.contact_rows.split_rows`' efc, col0, jw, far and ext: its kb banded
+    rows are col0's; group: :func:`derods._numba.cone_rows.cone_groups`'), into a_out,
+    force_out and MuJoCo's efc_force."""
     n = len(a0)
+    kb = len(col0)
     a = a0.copy()
     any_ext = False
     for j in range(n):
