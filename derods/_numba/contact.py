@@ -26,7 +26,7 @@ from .dense import inverse_quadratic_rows
 from .contact_rows import FAR_DENSE_MAX, Rows, apply_all, efc_triplets, far_columns, rows_apply, rows_diag, split_rows
 from .contact_rows import transpose_apply_all
 from .implicit import System, sm_solve_into
-from .rod_blocks import banded_rows, rod_system, rods_own_rows, rows_by_rod
+from .rod_blocks import banded_rows, range_system, rods_own_rows, rows_by_rod
 
 
 class Efc(NamedTuple):
@@ -245,7 +245,7 @@ def _solve_rods(efc, rod, lo, local_of_dof, dof_off, width, system, a0, a_out, f
         a_b = np.empty(d1 - d0)
         f_b = np.empty(d1 - d0)
         solve_split(np.arange(k), col0, jw, no_far, np.zeros(d1 - d0), efc, None, efc_rows, no_group,
-                    rod_system(system, d0, d1), np.full(d1 - d0, i), a0[d0:d1].copy(), a_b, f_b, max_iter, tol)
+                    range_system(system, d0, d1), np.full(d1 - d0, i), a0[d0:d1].copy(), a_b, f_b, max_iter, tol)
         a_out[d0:d1] = a_b
         force_out[d0:d1] = f_b
 
@@ -328,30 +328,25 @@ def solve_blocks(efc, cone_contacts, blocks, b0, b1, local_of_dof, dof_off, widt
             val_b[q] = val[p]
         local_b = np.arange(m + 1)
         local_b[m] = -1
-        n_tw = 0
-        for q in range(len(rod_of_tw)):
-            if block_of_rod[rod_of_tw[q]] == b:
-                n_tw += 1
-        tw = np.empty(n_tw, dtype=np.int64)  # the block's twist terms
-        n_tw = 0
-        for q in range(len(rod_of_tw)):
-            if block_of_rod[rod_of_tw[q]] == b:
-                tw[n_tw] = q
-                n_tw += 1
-        tw_lo_b = np.empty(len(tw), dtype=np.int64)
-        tw_hi_b = np.empty(len(tw), dtype=np.int64)
-        for q in range(len(tw)):
-            tw_lo_b[q] = compact[tw_lo[tw[q]]]
-            tw_hi_b[q] = compact[tw_hi[tw[q]] - 1] + 1
         lo = ids[0]
-        if m == len(a0) and len(tw) == len(tw_lo):  # every dof in order: the system as it is
-            block = system
-        elif ids[m - 1] - lo == m - 1:  # a range of dofs (one rod, or rods in a row): copied as slices
-            block = System(system.k_band[:, lo:lo + m].copy(), system.mass[lo:lo + m].copy(),
-                           system.g[lo:lo + m].copy(), system.tw_rod[tw], tw_lo_b, tw_hi_b, system.tw_c[tw],
-                           system.a_band[:, lo:lo + m].copy(), system.lt[lo:lo + m].copy(),
-                           system.z[lo:lo + m].copy(), system.den[tw], system.weights)
+        if ids[m - 1] - lo == m - 1:  # a range of dofs (one rod, or rods in a row)
+            block = range_system(system, lo, lo + m)
         else:
+            n_tw = 0
+            for q in range(len(rod_of_tw)):
+                if block_of_rod[rod_of_tw[q]] == b:
+                    n_tw += 1
+            tw = np.empty(n_tw, dtype=np.int64)  # the block's twist terms
+            n_tw = 0
+            for q in range(len(rod_of_tw)):
+                if block_of_rod[rod_of_tw[q]] == b:
+                    tw[n_tw] = q
+                    n_tw += 1
+            tw_lo_b = np.empty(len(tw), dtype=np.int64)
+            tw_hi_b = np.empty(len(tw), dtype=np.int64)
+            for q in range(len(tw)):
+                tw_lo_b[q] = compact[tw_lo[tw[q]]]
+                tw_hi_b[q] = compact[tw_hi[tw[q]] - 1] + 1
             block = System(np.ascontiguousarray(system.k_band[:, ids]), system.mass[ids], system.g[ids],
                            system.tw_rod[tw], tw_lo_b, tw_hi_b, system.tw_c[tw],
                            np.ascontiguousarray(system.a_band[:, ids]), system.lt[ids], system.z[ids],

@@ -9,7 +9,7 @@ renumbers each block's entries and splits its rows (:func:`derods._numba.contact
 passes over every row and entry that, for ten rods lying on a floor (1280 rows), took ~60 of
 the stage's ~300 us. When each row lies within one rod's window, the blocks are the rods the
 rows touch and a row is one window: :func:`rods_own_rows` finds whether that holds and each
-row's rod and first dof, :func:`rows_by_rod`, :func:`banded_rows` and :func:`rod_system` give
+row's rod and first dof, :func:`rows_by_rod`, :func:`banded_rows` and :func:`range_system` give
 each rod's rows, windows and system as the general stage would (the same rows in the same
 order, the same windows, the same system: the same bits, ``tests/test_rod_blocks.py``), and
 :func:`derods._numba.contact.contact_step` solves them.
@@ -95,10 +95,11 @@ def banded_rows(efc, efc_rows, lo, local_of_dof, d0, width):
 
 
 @nb.njit(cache=True)
-def rod_system(system, d0, d1):
-    """The implicit system (:class:`derods._numba.implicit.System`) of the rod whose dofs are
-    d0 .. d1 - 1: copies of its part, its twist terms' ranges from d0 (the system itself
-    when the rod is all of it)."""
+def range_system(system, d0, d1):
+    """The implicit system (:class:`derods._numba.implicit.System`) of the rods whose dofs are
+    d0 .. d1 - 1 (one rod, or rods in a row): copies of its part, the twist terms within it
+    with their ranges from d0 (the system itself when the range is all of it). A block of
+    the general stage whose dofs are a range takes it too (:func:`derods._numba.contact.solve_blocks`)."""
     if d1 - d0 == len(system.mass):
         return system
     tw_lo = system.tw_lo
