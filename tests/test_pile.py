@@ -38,6 +38,24 @@ def test_a_small_pile_comes_to_rest_in_a_heap(capsys):
     assert rec["max_speed"] < 0.05
     assert rec["ms_per_frame"] == pytest.approx(rec["us_per_step"] / 1e3 * 2)  # dt = 1/120 s: 2 steps a frame
     assert rec["late_ms_per_frame"] > 0 and rec["cpu_s"] > 0
+    assert rec["backend"] == "der" and rec["solver_iterations"] is None
+
+
+def test_the_same_pile_runs_on_mujocos_flexcomps(capsys):
+    """``--backend flex``: the cables as MuJoCo's own 1D flexcomps, the same layout, material,
+    friction and damping, stepped by mj_step; the record says how MuJoCo's solver fared
+    and that the flexcomps do not touch themselves. Two layers of two come to rest on
+    one another as derods' do (the test above)."""
+    assert main(["bench", "pile", "--cables", "4", "--vertices", "11", "--seconds", "1", "--backend", "flex",
+                 "--json"]) == 0
+    rec = json.loads(capsys.readouterr().out)
+    assert rec["backend"] == "flex" and rec["mode"] == "native" and rec["stable"] and rec["steps"] == 120
+    assert rec["heap_height"] == pytest.approx(3 * pile.RADIUS, abs=0.3 * pile.RADIUS)
+    assert rec["penetration"] < pile.RADIUS and rec["contacts"] > 0 and rec["max_speed"] < 0.05
+    its = rec["solver_iterations"]
+    assert its["solver"] == "newton" and its["cap"] == 100 and 1 <= its["median"] <= its["max"] < its["cap"]
+    assert its["at_cap"] == 0 and "without self-contact" in rec["note"]
+    assert "newton solver" in pile.format_record(rec)
 
 
 def test_speculative_contacts_keep_landing_cables_out_of_one_another(capsys):
@@ -108,10 +126,12 @@ def test_pile_options_are_checked(capsys):
     assert main(["bench", "cantilever", "--cables", "3"]) == 2
     assert main(["bench", "cantilever", "--margin", "0.01"]) == 2
     assert main(["bench", "cantilever", "--speculative"]) == 2
-    assert main(["bench", "pile", "--backend", "flex"]) == 2
+    assert main(["bench", "pile", "--backend", "cable"]) == 2
+    assert main(["bench", "pile", "--backend", "flex", "--speculative"]) == 2
     err = capsys.readouterr().err
     assert "--repeats is not an option of the pile case" in err and "--cables is an option of the pile case only" in err
-    assert "runs on derods only" in err
+    assert "backend must be one of ('der', 'flex') for the pile case, got 'cable'" in err
+    assert "the flex pile runs with neither" in err
     assert "--margin is an option of the pile case only" in err
     with pytest.raises(ValueError, match="cables must be an integer >= 1"):
         pile.PileCase(cables=0)

@@ -245,10 +245,11 @@ def bench(args: argparse.Namespace) -> int:
         for name in ("strands", "motion"):
             if getattr(args, name) is not None:
                 raise ValueError(f"--{name} is an option of the hair case only")
-        if args.strand_contact or args.backend != "der":
-            raise ValueError("the pile case runs on derods only, its cables always touching one another")
+        if args.strand_contact:
+            raise ValueError("--strand-contact is an option of the hair case only (the pile's cables always touch)")
         given = {k: v for k, v in (("cables", args.cables), ("vertices", args.vertices), ("dt", args.dt),
-                                   ("seconds", args.seconds), ("margin", args.margin)) if v is not None}
+                                   ("seconds", args.seconds), ("margin", args.margin),
+                                   ("backend", args.backend)) if v is not None}
         given["speculative"] = args.speculative
         return pile.main(pile.PileCase(**given), args.json)
     if args.case == "hair":

@@ -202,10 +202,13 @@ def flex_rod(points: np.ndarray, p, pinned=(), gravity=None, closed: bool = Fals
 
 
 def flex_world(rods: list[np.ndarray], p, pinned=(), gravity=None, scene: str | None = None,
-               mass_damping: float = 0.0) -> tuple[mujoco.MjModel, mujoco.MjData]:
+               mass_damping: float = 0.0, friction: float | None = None,
+               memory: int | None = None) -> tuple[mujoco.MjModel, mujoco.MjData]:
     """Several flexcomp rods (points [m], each (n_i + 1, 3)) in one model, set up as
     :func:`flex_rod` sets up one (rod i's names prefixed "r<i>_"). For timing many rods
-    against derods; returns the compiled model and its data."""
+    against derods; returns the compiled model and its data. friction: the rods' sliding
+    friction coefficient (None: MuJoCo's default, 1); memory: MuJoCo's arena [bytes] (None:
+    MuJoCo's own guess, too small for a heap of many rods' contacts)."""
     mat = p.material
     nu, _ = poisson_for(mat.young, mat.shear_modulus)
     grav = (0.0, 0.0, -p.gravity) if gravity is None else gravity
@@ -215,6 +218,11 @@ def flex_world(rods: list[np.ndarray], p, pinned=(), gravity=None, scene: str | 
         mass = mat.density * math.pi * mat.radius**2 * length
         child = flex_spec(points, mat.radius, mass, mat.young, nu, pinned=pinned, dt=p.dt, gravity=grav)
         spec.attach(child, frame=spec.worldbody.add_frame(), prefix=f"r{i}_")
+    if friction is not None:
+        for flex in spec.flexes:
+            flex.friction = [float(friction), 0.005, 0.0001]
+    if memory is not None:
+        spec.memory = int(memory)
     model = spec.compile()
     if mass_damping:
         for b in range(model.nbody):

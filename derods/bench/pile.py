@@ -11,8 +11,14 @@ friction 1 (a cable's edges nearer along it than pi r do not touch:
 :func:`derods.sim.exclusion.self_reach`), contact margin ``margin`` (or margins sized by
 each cable's speed: ``speculative``), implicit steps of ``dt`` with mass damping 1/s.
 
-A record holds ``cables``, ``vertices``, ``dt``, ``seconds``; ``build_s`` [s] (scene and
-cables to a compiled world); ``steps``, ``wall_s`` [s] (the steps alone), ``cpu_s`` [s]
+The same pile runs on MuJoCo's native rods (``backend="flex"``): one 1D flexcomp a cable
+(MuJoCo's own elasticity, the discrete integrator, MuJoCo's own contact solver at its
+defaults), the same material, friction, contact parameters and mass damping; no margins,
+and no self-contact (MuJoCo's own would press every straight cable's edges two apart,
+which derods leaves out), which spares the flex work derods does.
+
+A record holds ``backend``, ``cables``, ``vertices``, ``dt``, ``seconds``; ``build_s`` [s]
+(scene and cables to a compiled model); ``steps``, ``wall_s`` [s] (the steps alone), ``cpu_s`` [s]
 (this process's CPU time in them: on a shared machine, well below wall_s when other work
 competes for the cores),
 ``us_per_step`` [us] (median step), ``mean_us_per_step``, ``ms_per_frame`` [ms] (the
@@ -21,7 +27,10 @@ median step times the steps in 1/60 s), ``mean_ms_per_frame`` and ``late_ms_per_
 dear, so a run's median mixes the phases); ``stable``; ``penetration`` [m], the deepest
 contact (rod in floor, rod in rod) over the second half, and ``penetration_max`` over the
 whole run (a run stopped before its second half has None for the late figures); ``contacts`` at the end;
-``heap_height`` [m], the highest vertex at the end; ``max_speed`` [m/s] at the end.
+``heap_height`` [m], the highest vertex at the end; ``max_speed`` [m/s] at the end;
+``solver_iterations`` (flex: the median and largest of MuJoCo's solver iterations a step,
+and the steps that ended at its cap, unconverged; None for derods, whose contact solve
+runs to its tolerance).
 """
 
 from __future__ import annotations
@@ -40,8 +49,11 @@ from ..material import Material
 from ..rod import Rod
 from ..sim.contact_params import ContactParams
 from ..sim.divergence import DivergenceError
+from ..sim import layout as layout_mod
 from ..sim.world import World
+from . import native
 from .measures import over_budget
+from .params import CaseParams
 
 #: One simulated frame [s]: the cost reported is per frame.
 FRAME = 1.0 / 60.0
@@ -51,6 +63,12 @@ EDGE, RADIUS = 0.01, 0.005
 SPACING, LAYER_GAP = 0.03, 5 * RADIUS
 #: How far each layer turns from the one below [rad].
 LAYER_TURN = 2.4
+#: Backends the pile runs on.
+PILE_BACKENDS = ("der", "flex")
+#: What a record should say about its backend.
+NOTES = {"der": "", "flex": "flexcomps without self-contact (derods' cables touch themselves too)"}
+#: Mass damping of the cables [1/s].
+MASS_DAMPING = 1.0
 
 
 @dataclass(frozen=True)
@@ -63,7 +81,8 @@ class PileCase:
     (``ContactParams(speculative=True)``: no deeper than ~0.6 mm once the heap formed, about
     the cost of margin 0 a frame, docs/performance.md); max_wall_s:
     stop stepping once the steps took this long [s] (the record then says so, and covers
-    the steps made)."""
+    the steps made); backend: "der" or "flex" (MuJoCo's 1D flexcomps, see the module
+    docstring; margin 0, no speculative contacts)."""
 
     cables: int = 100
     vertices: int = 41
@@ -74,8 +93,13 @@ class PileCase:
     margin: float = 0.0
     speculative: bool = False
     max_wall_s: float | None = None
+    backend: str = "der"
 
     def __post_init__(self):
+        if self.backend not in PILE_BACKENDS:
+            raise ValueError(f"backend must be one of {PILE_BACKENDS} for the pile case, got {self.backend!r}")
+        if self.backend != "der" and (self.margin or self.speculative):
+            raise ValueError("margin and speculative are derods' contact options: the flex pile runs with neither")
         if int(self.cables) != self.cables or self.cables < 1:
             raise ValueError(f"cables must be an integer >= 1, got {self.cables!r}")
         if int(self.vertices) != self.vertices or self.vertices < 3:
@@ -114,13 +138,72 @@ def build(case: PileCase) -> World:
     """The compiled world of ``case``."""
     contact = ContactParams(friction=case.friction, self_collision=True, margin=case.margin,
                             speculative=bool(case.speculative))
-    world = World(scenes.path("floor"), dt=case.dt, gravity=(0.0, 0.0, -9.81), mode="implicit", mass_damping=1.0,
-                  contact=contact, scene_checks=False)
+    world = World(scenes.path("floor"), dt=case.dt, gravity=(0.0, 0.0, -9.81), mode="implicit",
+                  mass_damping=MASS_DAMPING, contact=contact, scene_checks=False)
     mat = case.material
     for k, x in enumerate(layout(case)):
         world.add_rod(Rod(x, mat, natural_curvature=False), f"cable{k}")
     world.compile()
     return world
+
+
+def build_flex(case: PileCase) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """The same cables as MuJoCo flexcomps on the same floor (see the module docstring):
+    model and data."""
+    mat = case.material
+    p = CaseParams(n_edges=case.vertices - 1, dt=case.dt, young=mat.young, poisson=mat.poisson,
+                   length=EDGE * (case.vertices - 1), radius=mat.radius, density=mat.density, gravity=9.81,
+                   backend="flex")
+    n = case.cables * case.vertices
+    # MuJoCo's own arena guess grows as nv^2; the budget derods gives its large worlds,
+    # doubled for the flex solver's M + K (as the hair's flexcomps).
+    memory = 2 * layout_mod.arena_budget(4 * n, n + 2 * case.cables + 64)
+    return native.flex_world(layout(case), p, scene="floor", mass_damping=MASS_DAMPING, friction=case.friction,
+                             memory=memory)
+
+
+class _DerPile:
+    """derods' pile behind the few calls the run needs."""
+
+    def __init__(self, case: PileCase):
+        self.world = build(case)
+        self.data = self.world.data
+        self.cables = case.cables
+
+    def step(self) -> None:
+        self.world.step()
+
+    def positions(self) -> np.ndarray:
+        return np.concatenate([self.world.positions(r) for r in range(self.cables)])
+
+    def max_speed(self) -> float:
+        return float(max(np.linalg.norm(self.world.velocities(r), axis=1).max() for r in range(self.cables)))
+
+
+class _FlexPile:
+    """The pile as MuJoCo flexcomps (:func:`build_flex`), stepped by mj_step."""
+
+    def __init__(self, case: PileCase):
+        self.model, self.data = build_flex(case)
+        m = self.model
+        bodies = m.flex_vertbodyid[:m.nflexvert]
+        self._vertex_dofs = (m.body_dofadr[bodies][:, None] + np.arange(3)).ravel()
+        self._diagnosis = native.Diagnosis(["native flex pile"])
+        self._badqacc, self.n_steps = 0, 0
+        self.iterations = []
+
+    def step(self) -> None:
+        mujoco.mj_step(self.model, self.data)
+        self.n_steps += 1
+        self.iterations.append(int(self.data.solver_niter[0]))
+        self._badqacc = native.check_mujoco(self.data, self._vertex_dofs, self._badqacc, self._diagnosis,
+                                            self.n_steps)
+
+    def positions(self) -> np.ndarray:
+        return self.data.flexvert_xpos.copy()
+
+    def max_speed(self) -> float:
+        return float(np.linalg.norm(self.data.qvel[self._vertex_dofs].reshape(-1, 3), axis=1).max())
 
 
 def _deepest(data) -> float:
@@ -133,10 +216,10 @@ def _deepest(data) -> float:
 def run(case: PileCase, progress=None) -> dict:
     """Build and run ``case``; returns its record. progress: optional ``f(text)``."""
     t0 = time.perf_counter()
-    world = build(case)
+    sim = (_DerPile if case.backend == "der" else _FlexPile)(case)
     build_s = time.perf_counter() - t0
     if progress:
-        progress(f"built {case.cables} cables x {case.vertices} vertices in {build_s:.1f} s")
+        progress(f"built {case.cables} cables x {case.vertices} vertices ({case.backend}) in {build_s:.1f} s")
     n_steps = int(round(case.seconds / case.dt))
     times, pen_late, pen_max, cpu = [], None, 0.0, 0.0
     stable, note, budget = True, "", ""
@@ -146,17 +229,17 @@ def run(case: PileCase, progress=None) -> dict:
             if budget:
                 break
             a, c = time.perf_counter(), time.process_time()
-            world.step()
+            sim.step()
             times.append(time.perf_counter() - a)
             cpu += time.process_time() - c
-            pen = _deepest(world.data)
+            pen = _deepest(sim.data)
             pen_max = max(pen_max, pen)
             if k >= n_steps // 2:  # the heap formed
                 pen_late = max(pen_late or 0.0, pen)
             if progress and (k + 1) % max(1, n_steps // 20) == 0:
                 progress(f"step {k + 1} of {n_steps}: {1e3 * np.median(times):.1f} ms median step, "
                          f"{sum(times):.0f} s wall, {cpu:.0f} s CPU")
-        x = np.concatenate([world.positions(r) for r in range(case.cables)])
+        x = sim.positions()
         if not np.all(np.isfinite(x)):
             raise DivergenceError(f"positions not finite after {len(times)} steps")
     except DivergenceError as err:
@@ -165,8 +248,9 @@ def run(case: PileCase, progress=None) -> dict:
     median = float(np.median(times)) if times else None
     mean = float(np.mean(times)) if times else None
     rec = {
-        "case": "pile", "backend": "der", "mujoco_version": mujoco.__version__, "cables": case.cables,
-        "vertices": case.vertices, "n_edges": case.vertices - 1, "dt": case.dt, "mode": "implicit",
+        "case": "pile", "backend": case.backend, "mujoco_version": mujoco.__version__, "cables": case.cables,
+        "vertices": case.vertices, "n_edges": case.vertices - 1, "dt": case.dt,
+        "mode": "implicit" if case.backend == "der" else "native",
         "seconds": case.seconds, "young": case.young, "friction": case.friction, "margin": case.margin,
         "speculative": bool(case.speculative), "radius": RADIUS,
         "length": EDGE * (case.vertices - 1), "build_s": build_s, "steps": len(times), "sim_s": len(times) * case.dt,
@@ -176,19 +260,30 @@ def run(case: PileCase, progress=None) -> dict:
         "mean_ms_per_frame": None if mean is None else 1e3 * mean * steps_per_frame,
         "late_ms_per_frame": (1e3 * float(np.median(times[n_steps // 2:])) * steps_per_frame
                               if len(times) > n_steps // 2 else None),
-        "stable": stable, "penetration": pen_late, "penetration_max": pen_max, "contacts": int(world.data.ncon),
-        "heap_height": None, "max_speed": None, "note": note or budget,
+        "stable": stable, "penetration": pen_late, "penetration_max": pen_max, "contacts": int(sim.data.ncon),
+        "heap_height": None, "max_speed": None, "solver_iterations": _iterations(sim),
+        "note": "; ".join(t for t in (note or budget, NOTES[case.backend]) if t),
     }
     if stable:
         rec["heap_height"] = float(x[:, 2].max())
-        rec["max_speed"] = float(max(np.linalg.norm(world.velocities(r), axis=1).max()
-                                     for r in range(case.cables)))
+        rec["max_speed"] = sim.max_speed()
     return rec
+
+
+def _iterations(sim) -> dict | None:
+    """MuJoCo's solver iterations over the flex pile's steps (None for derods)."""
+    its = getattr(sim, "iterations", None)
+    if not its:
+        return None
+    cap = int(sim.model.opt.iterations)
+    return {"median": float(np.median(its)), "max": int(max(its)), "at_cap": int(sum(i >= cap for i in its)),
+            "cap": cap, "solver": mujoco.mjtSolver(sim.model.opt.solver).name.removeprefix("mjSOL_").lower()}
 
 
 def format_record(rec: dict) -> str:
     """One readable line for a pile record."""
-    head = (f"pile: {rec['cables']} cables x {rec['vertices']} vertices, dt={rec['dt']:.4g}, "
+    head = (f"pile {rec.get('backend', 'der')}: {rec['cables']} cables x {rec['vertices']} vertices, "
+            f"dt={rec['dt']:.4g}, "
             f"{rec['seconds']:g} s" + (f", margin {rec['margin']:g} m" if rec.get("margin") else "")
             + (", speculative contacts" if rec.get("speculative") else "")
             + f" | build {rec['build_s']:.2f} s")
@@ -201,7 +296,14 @@ def format_record(rec: dict) -> str:
             f"mean {rec['mean_ms_per_frame']:.1f}; CPU {rec['cpu_s']:.3g} s of {rec['wall_s']:.3g} s) | {late} | "
             f"deepest contact {rec['penetration_max'] * 1e3:.2f} mm | {rec['contacts']} contacts at the end, heap "
             f"{rec['heap_height'] * 1e3:.0f} mm high, fastest vertex {rec['max_speed']:.2g} m/s"
-            + (f" | {rec['note']}" if rec["note"] else ""))
+            + _format_iterations(rec.get("solver_iterations")) + (f" | {rec['note']}" if rec["note"] else ""))
+
+
+def _format_iterations(its: dict | None) -> str:
+    if not its:
+        return ""
+    return (f" | MuJoCo's {its['solver']} solver: {its['median']:g} iterations a median step, {its['max']} at most, "
+            f"{its['at_cap']} steps stopped at its cap of {its['cap']} (unconverged)")
 
 
 def main(case: PileCase, as_json: bool, stream=None) -> int:
