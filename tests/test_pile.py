@@ -137,3 +137,7 @@ def test_pile_options_are_checked(capsys):
         pile.PileCase(cables=0)
     with pytest.raises(ValueError, match="margin must be finite and >= 0"):
         pile.PileCase(margin=-1e-3)
+    with pytest.raises(ValueError, match="flex_solver must be one of"):
+        pile.PileCase(backend="flex", flex_solver="dense")
+    with pytest.raises(ValueError, match="flex_solver is the flex pile's option"):
+        pile.PileCase(flex_solver="cg")

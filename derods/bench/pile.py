@@ -65,6 +65,9 @@ SPACING, LAYER_GAP = 0.03, 5 * RADIUS
 LAYER_TURN = 2.4
 #: Backends the pile runs on.
 PILE_BACKENDS = ("der", "flex")
+#: MuJoCo's constraint solvers the flex pile may take.
+FLEX_SOLVERS = {"newton": mujoco.mjtSolver.mjSOL_NEWTON, "cg": mujoco.mjtSolver.mjSOL_CG,
+                "pgs": mujoco.mjtSolver.mjSOL_PGS}
 #: What a record should say about its backend.
 NOTES = {"der": "", "flex": "flexcomps without self-contact (derods' cables touch themselves too)"}
 #: Mass damping of the cables [1/s].
@@ -82,7 +85,9 @@ class PileCase:
     the cost of margin 0 a frame, docs/performance.md); max_wall_s:
     stop stepping once the steps took this long [s] (the record then says so, and covers
     the steps made); backend: "der" or "flex" (MuJoCo's 1D flexcomps, see the module
-    docstring; margin 0, no speculative contacts)."""
+    docstring; margin 0, no speculative contacts); flex_solver: MuJoCo's constraint solver
+    for the flex pile, one of FLEX_SOLVERS (its default, Newton; "cg" stops at its iteration
+    cap, unconverged, on a heap)."""
 
     cables: int = 100
     vertices: int = 41
@@ -94,8 +99,13 @@ class PileCase:
     speculative: bool = False
     max_wall_s: float | None = None
     backend: str = "der"
+    flex_solver: str = "newton"
 
     def __post_init__(self):
+        if self.flex_solver not in FLEX_SOLVERS:
+            raise ValueError(f"flex_solver must be one of {tuple(FLEX_SOLVERS)}, got {self.flex_solver!r}")
+        if self.flex_solver != "newton" and self.backend != "flex":
+            raise ValueError("flex_solver is the flex pile's option (derods solves its contacts itself)")
         if self.backend not in PILE_BACKENDS:
             raise ValueError(f"backend must be one of {PILE_BACKENDS} for the pile case, got {self.backend!r}")
         if self.backend != "der" and (self.margin or self.speculative):
@@ -186,6 +196,7 @@ class _FlexPile:
     def __init__(self, case: PileCase):
         self.model, self.data = build_flex(case)
         m = self.model
+        m.opt.solver = FLEX_SOLVERS[case.flex_solver]
         bodies = m.flex_vertbodyid[:m.nflexvert]
         self._vertex_dofs = (m.body_dofadr[bodies][:, None] + np.arange(3)).ravel()
         self._diagnosis = native.Diagnosis(["native flex pile"])
