@@ -31,7 +31,8 @@ import derods._numba.contact as _k
 from bench_world import drop, strands
 from derods._numba.banded import cholesky_into, inverse_band, solve_into
 from derods._numba.contact_newton import newton, no_border
-from derods._numba.contact_rows import Rows, rows_band, rows_diag, split_rows
+from derods._numba.contact_rows import Rows, rows_band, rows_diag
+from derods._numba.row_split import split_rows
 from derods.sim import contact as stage
 
 WORLDS = {"box": lambda: drop("box")[0](), "floor": lambda: drop("floor")[0](),

@@ -1,6 +1,6 @@
 """Compiled (numba) kernels, split by concern: one rod step (:mod:`.step`), banded
-linear algebra (:mod:`.banded`) and the contact rows (:mod:`.contact_rows`). Each
-mirrors a numpy path that the tests hold it to.
+linear algebra (:mod:`.banded`), the contact rows (:mod:`.row_split`, :mod:`.contact_rows`)
+and so on. Each mirrors a numpy path that the tests hold it to.
 
 numba caches a kernel's machine code keyed on its own file's stamp, not on the files of
 the kernels it calls nor of the constants it reads: after a change to ``contact_cg.py``

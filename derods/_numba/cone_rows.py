@@ -82,7 +82,7 @@ def share_patterns(fptr, fcol, fval, kb, cones):
 
 @nb.njit(cache=True)
 def cone_groups(efc_rows, efc_type, cone_contacts):
-    """Each of a block's rows' group (:func:`derods._numba.contact_rows.split_bordered_rows`):
+    """Each of a block's rows' group (:func:`derods._numba.row_split.split_bordered_rows`):
     an elliptic contact's rows (efc_rows (k,): their numbers among MuJoCo's rows, each
     contact's consecutive) the block number of its first, every other row its own; empty
     if there is no elliptic contact (cone_contacts None or empty)."""

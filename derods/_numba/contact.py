@@ -23,8 +23,8 @@ from .cones import cone_weights
 from .contact_blocks import partition
 from .contact_newton import newton, no_border
 from .dense import inverse_quadratic_rows
-from .contact_rows import FAR_DENSE_MAX, Rows, apply_all, efc_triplets, far_columns, rows_apply, rows_diag, split_rows
-from .contact_rows import transpose_apply_all
+from .contact_rows import FAR_DENSE_MAX, Rows, apply_all, far_columns, rows_apply, rows_diag, transpose_apply_all
+from .row_split import efc_triplets, split_rows
 from .implicit import System, sm_solve_into
 from .rod_blocks import banded_rows, range_system, rods_own_rows, rows_by_rod
 
@@ -397,7 +397,7 @@ def solve_block(row, col, val, efc_data, cone_contacts, efc_rows, supported, loc
 def solve_split(efc, col0, jw, far, ext, efc_data, cone_contacts, efc_rows, group, system, rod_of_dof, a0, a_out,
                 force_out, max_iter, tol):
     """Steps 2 and 3 of :func:`solve_block`, on a block's rows as step 1 splits them
-    (:func:`derods._numba.contact_rows.split_rows`' efc, col0, jw, far and ext: its kb banded
+    (:func:`derods._numba.row_split.split_rows`' efc, col0, jw, far and ext: its kb banded
     rows are col0's; group: :func:`derods._numba.cone_rows.cone_groups`'), into a_out,
     force_out and MuJoCo's efc_force."""
     n = len(a0)

@@ -21,7 +21,7 @@ def _root(parent, i):
 @nb.njit(cache=True)
 def partition(row, col, nefc, local_of_dof, dof_off):
     """Blocks of rods bound by rows, from the nonzeros (row, col) of MuJoCo's efc_J, row by
-    row (row nondecreasing: :func:`derods._numba.contact_rows.efc_triplets`' order).
+    row (row nondecreasing: :func:`derods._numba.row_split.efc_triplets`' order).
 
     local_of_dof (nv,): each MuJoCo dof's local rod dof or -1; dof_off (n_rods + 1,): each
     rod's local dofs. Returns (n_blocks; idx, the local dofs block by block, block b's at

@@ -21,7 +21,8 @@ import numpy as np
 
 from .cone_rows import block_cones, cone_groups, share_patterns
 from .cones import Cones
-from .contact_rows import Rows, efc_triplets, split_bordered_rows, transpose_apply_all
+from .contact_rows import Rows, transpose_apply_all
+from .row_split import efc_triplets, split_bordered_rows
 from .dense import lu_factor
 
 
@@ -47,7 +48,7 @@ class BorderedRows(NamedTuple):
 @nb.njit(cache=True)
 def bordered_rows(efc, cone_contacts, supported_types, own, local_of_dof, border_of_dof, n, m, width):
     """MuJoCo's rows (``efc``, :class:`derods._numba.contact.Efc`) split for a solve over n
-    local dofs bordered by m more (:func:`derods._numba.contact_rows.split_bordered_rows`;
+    local dofs bordered by m more (:func:`derods._numba.row_split.split_bordered_rows`;
     local_of_dof, border_of_dof (nv,): each MuJoCo dof's place among them, -1 elsewhere),
     in one call: the supported types (supported_types), the rows ``own`` (nefc,) bool
     or empty that take no force at all (neither solved nor MuJoCo's: a held edge against

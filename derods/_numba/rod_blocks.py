@@ -5,7 +5,7 @@ in one pass over the rows.
 
 The general stage (:func:`derods._numba.contact.contact_step`) spreads MuJoCo's rows into
 triplets, binds rods into blocks (:func:`derods._numba.contact_blocks.partition`),
-renumbers each block's entries and splits its rows (:func:`derods._numba.contact_rows.split_rows`):
+renumbers each block's entries and splits its rows (:func:`derods._numba.row_split.split_rows`):
 passes over every row and entry that, for ten rods lying on a floor (1280 rows), took ~60 of
 the stage's ~300 us. When each row lies within one rod's window, the blocks are the rods the
 rows touch and a row is one window: :func:`rods_own_rows` finds whether that holds and each

@@ -53,7 +53,7 @@ from .._numba.banded import cholesky_into
 from .._numba.calls import Bound
 from .._numba.cone_rows import ConeContacts
 from .._numba.contact_newton import Border, newton
-from .._numba.contact_rows import efc_triplets
+from .._numba.row_split import efc_triplets
 from .._numba.coupled import bordered_rows, row_forces_into
 from .._numba.dense import lu_factor
 from .._numba.implicit import sm_solve_into

@@ -26,7 +26,7 @@ import mujoco
 import numpy as np
 
 from .._numba.contact import Efc
-from .._numba.contact_rows import efc_triplets
+from .._numba.row_split import efc_triplets
 
 _EQUALITY = int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)
 _LIMIT = int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT)
