@@ -13,7 +13,7 @@ import derods
 from derods import scenes, shapes
 from derods.sim import contact
 from derods import World
-from derods._numba import contact as _contact_kernels
+from derods._numba import row_weights as _row_weights
 from derods._numba.contact_rows import FAR_DENSE_MAX
 
 
@@ -110,8 +110,8 @@ def test_far_rows_weights_row_by_row_equal_the_dense_solves():
     rows = ContactRows(np.zeros(0, dtype=np.int64), np.zeros((0, 9)), np.zeros(n_far), np.ones(n_far),
                        np.arange(n_far), jf=jf).rows(n)
     rod_of_dof = np.searchsorted(offsets, np.arange(n), side="right") - 1
-    by_row = _contact_kernels.delassus_diagonal(system.arrays, rows, rod_of_dof)
-    dense = _contact_kernels.delassus_diagonal(system.arrays, rows, np.zeros(0, dtype=np.int64))
+    by_row = _row_weights.delassus_diagonal(system.arrays, rows, rod_of_dof)
+    dense = _row_weights.delassus_diagonal(system.arrays, rows, np.zeros(0, dtype=np.int64))
     a_inv = np.linalg.inv(np.stack([a_matvec(system, e) for e in np.eye(n)], axis=1))
     np.testing.assert_allclose(dense, np.einsum("ij,jk,ik->i", jf, a_inv, jf), rtol=1e-9)
     np.testing.assert_allclose(by_row, dense, rtol=1e-12)

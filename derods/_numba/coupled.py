@@ -32,7 +32,7 @@ class BorderedRows(NamedTuple):
     first); rows (:class:`derods._numba.contact_rows.Rows`) their entries on the local
     dofs, jq (k, m) on the border's; ext (n,) and ext_q (m,) [N] MuJoCo's force of the rows
     it keeps on either; aref (k,) [m/s^2] the rows' reference accelerations and ratio (k,)
-    MuJoCo's R / diagA (its impedance, :func:`derods._numba.contact.row_weights`); cones
+    MuJoCo's R / diagA (its impedance, :func:`derods._numba.row_weights.row_weights`); cones
     (:class:`derods._numba.cones.Cones`) the elliptic contacts among them."""
 
     efc: np.ndarray

@@ -38,7 +38,7 @@ otherwise finds a rod moving at v only once it is up to v h inside.
 
 Per step, one compiled call (:func:`derods._numba.contact.contact_step`) does it
 all: split MuJoCo's rows, reweight them for the implicit metric
-(:func:`derods._numba.contact.row_weights`), and run Newton's method
+(:func:`derods._numba.row_weights.row_weights`), and run Newton's method
 (:func:`derods._numba.contact_newton.newton`).
 """
 
