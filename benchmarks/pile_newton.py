@@ -177,13 +177,13 @@ def newton(pb: Problem, direction: str, tol: float = TOL, guess=None, segment: i
     it = 0
     for it in range(1, MAX_ITER + 1):
         w = np.where(jar < 0, d, 0.0)
-        grad = J.T @ (w * jar) + am
+        true_grad = grad = J.T @ (w * jar) + am
         gmax = np.abs(grad).max()
         if gmax <= tol * scale:
             break
         eta = forcing(eta, gmax, g_prev)
         g_prev = gmax
-        if it == 1 and guess is not None:
+        if it == 1 and guess is not None:  # the step's model from the guessed active set
             w = np.where(guess, d, 0.0)
             grad = J.T @ (w * jar) + am
         H = pb.hessian(w)
@@ -200,7 +200,7 @@ def newton(pb: Problem, direction: str, tol: float = TOL, guess=None, segment: i
                     prec = _balanced(prec, H, coarse)
             delta, cg = pcg(H, -grad, prec, eta)
         cg_total += cg
-        if delta @ (J.T @ (np.where(jar < 0, d, 0.0) * jar) + am) >= 0:  # not a descent direction
+        if delta @ true_grad >= 0:  # not a descent direction
             break
         jd, ad = J @ delta, A @ delta
         t = exact_line_search(jar, jd, d, delta @ ad, delta @ am)

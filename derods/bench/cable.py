@@ -20,8 +20,7 @@ import mujoco
 import numpy as np
 
 from .. import frames, shapes
-from ..sim.divergence import Diagnosis
-from .native import NativeRod, _compose, _macro_spec, _numbers, _ring_layout, _stiff, ring_vertices
+from .native import CheckedSteps, NativeRod, _compose, _macro_spec, _numbers, _ring_layout, _stiff, ring_vertices
 
 
 def has_cable() -> bool:
@@ -79,9 +78,7 @@ class CableRod(NativeRod):
         self.tip_site = m.site("cS_last").id
         self._dofs = np.arange(m.nv)
         self.free = np.ones(len(self.body_ids) + 1, dtype=bool)
-        self.n_steps = 0
-        self._badqacc = 0
-        self._diagnosis = Diagnosis([self.label])
+        self._steps = CheckedSteps(m, self.data, self._dofs, self.label)
         mujoco.mj_forward(m, self.data)
 
     def vertex_body(self, rod, vertex: int) -> int:

@@ -129,18 +129,14 @@ class _FlexHair:
         self.mocap = int(m.body_mocapid[body])
         self.centre = m.body_pos[body].copy()
         self.pivot = m.site(hair_mod.NECK).pos.copy()
-        self.n_steps, self._badqacc = 0, 0
-        self._diagnosis = native.Diagnosis(["native flex hair"])
+        self._steps = native.CheckedSteps(m, self.data, np.arange(m.nv), "native flex hair")
         self.shape = (case.strands, case.vertices)
 
     def step(self):
         d = self.data
         d.mocap_pos[self.mocap], d.mocap_quat[self.mocap] = self.motion.pose(d.time + self.model.opt.timestep,
                                                                              self.centre, self.pivot)
-        mujoco.mj_step(self.model, d)
-        self.n_steps += 1
-        self._badqacc = native.check_mujoco(d, np.arange(self.model.nv), self._badqacc, self._diagnosis,
-                                            self.n_steps)
+        self._steps.step()
 
     def positions(self) -> np.ndarray:
         return self.data.flexvert_xpos.reshape(self.shape[0], self.shape[1], 3).copy()

@@ -122,6 +122,24 @@ def flex_spec(points: np.ndarray, radius: float, mass: float, young: float, pois
     return _compose(_macro_spec(flex), mujoco.mjtIntegrator.mjINT_DISCRETE, dt, gravity, scene)
 
 
+class CheckedSteps:
+    """mj_step on a native model, each step checked as derods checks its own
+    (:func:`derods.sim.divergence.check_mujoco`: a MuJoCo reset, or a dof of ``dofs`` not
+    finite or too fast, raises :class:`derods.sim.divergence.DivergenceError` naming
+    ``label``); n_steps counts the steps made."""
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, dofs: np.ndarray, label: str):
+        self.model, self.data, self.dofs = model, data, dofs
+        self.n_steps = 0
+        self._badqacc = 0
+        self._diagnosis = Diagnosis([label])
+
+    def step(self) -> None:
+        mujoco.mj_step(self.model, self.data)
+        self.n_steps += 1
+        self._badqacc = check_mujoco(self.data, self.dofs, self._badqacc, self._diagnosis, self.n_steps)
+
+
 class NativeRod:
     """A native MuJoCo rod (one flexcomp) in its own model; the harness's protocol
     (:class:`derods.bench.backends.RodSimulator`). ``rod`` arguments are accepted and
@@ -138,9 +156,7 @@ class NativeRod:
         if mass_damping:
             for b in self.body_ids[self.free]:
                 m.dof_damping[m.body_dofadr[b]:m.body_dofadr[b] + 3] = mass_damping * m.body_mass[b]
-        self.n_steps = 0
-        self._badqacc = 0
-        self._diagnosis = Diagnosis([self.label])
+        self._steps = CheckedSteps(m, self.data, self._dofs, self.label)
         mujoco.mj_forward(m, self.data)
 
     label = "native flex"
@@ -149,6 +165,10 @@ class NativeRod:
     @property
     def time(self) -> float:
         return float(self.data.time)
+
+    @property
+    def n_steps(self) -> int:
+        return self._steps.n_steps
 
     def dofs(self, rod=0) -> np.ndarray:
         """MuJoCo dofs that carry the rod."""
@@ -182,9 +202,7 @@ class NativeRod:
 
     def step(self, n_steps: int = 1) -> None:
         for _ in range(n_steps):
-            mujoco.mj_step(self.model, self.data)
-            self.n_steps += 1
-            self._badqacc = check_mujoco(self.data, self._dofs, self._badqacc, self._diagnosis, self.n_steps)
+            self._steps.step()
 
 
 def flex_rod(points: np.ndarray, p, pinned=(), gravity=None, closed: bool = False, scene: str | None = None,

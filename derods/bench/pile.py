@@ -189,6 +189,10 @@ class _DerPile:
     def max_speed(self) -> float:
         return float(max(np.linalg.norm(self.world.velocities(r), axis=1).max() for r in range(self.cables)))
 
+    def solver_iterations(self) -> None:
+        """None: derods' contact solve runs to its tolerance."""
+        return None
+
 
 class _FlexPile:
     """The pile as MuJoCo flexcomps (:func:`build_flex`), stepped by mj_step."""
@@ -199,22 +203,27 @@ class _FlexPile:
         m.opt.solver = FLEX_SOLVERS[case.flex_solver]
         bodies = m.flex_vertbodyid[:m.nflexvert]
         self._vertex_dofs = (m.body_dofadr[bodies][:, None] + np.arange(3)).ravel()
-        self._diagnosis = native.Diagnosis(["native flex pile"])
-        self._badqacc, self.n_steps = 0, 0
-        self.iterations = []
+        self._steps = native.CheckedSteps(m, self.data, self._vertex_dofs, "native flex pile")
+        self._iterations = []
 
     def step(self) -> None:
-        mujoco.mj_step(self.model, self.data)
-        self.n_steps += 1
-        self.iterations.append(int(self.data.solver_niter[0]))
-        self._badqacc = native.check_mujoco(self.data, self._vertex_dofs, self._badqacc, self._diagnosis,
-                                            self.n_steps)
+        self._steps.step()
+        self._iterations.append(int(self.data.solver_niter[0]))
 
     def positions(self) -> np.ndarray:
         return self.data.flexvert_xpos.copy()
 
     def max_speed(self) -> float:
         return float(np.linalg.norm(self.data.qvel[self._vertex_dofs].reshape(-1, 3), axis=1).max())
+
+    def solver_iterations(self) -> dict | None:
+        """MuJoCo's solver iterations over the steps made (None before the first)."""
+        its = self._iterations
+        if not its:
+            return None
+        cap = int(self.model.opt.iterations)
+        return {"median": float(np.median(its)), "max": int(max(its)), "at_cap": int(sum(i >= cap for i in its)),
+                "cap": cap, "solver": mujoco.mjtSolver(self.model.opt.solver).name.removeprefix("mjSOL_").lower()}
 
 
 def _deepest(data) -> float:
@@ -272,23 +281,13 @@ def run(case: PileCase, progress=None) -> dict:
         "late_ms_per_frame": (1e3 * float(np.median(times[n_steps // 2:])) * steps_per_frame
                               if len(times) > n_steps // 2 else None),
         "stable": stable, "penetration": pen_late, "penetration_max": pen_max, "contacts": int(sim.data.ncon),
-        "heap_height": None, "max_speed": None, "solver_iterations": _iterations(sim),
+        "heap_height": None, "max_speed": None, "solver_iterations": sim.solver_iterations(),
         "note": "; ".join(t for t in (note or budget, NOTES[case.backend]) if t),
     }
     if stable:
         rec["heap_height"] = float(x[:, 2].max())
         rec["max_speed"] = sim.max_speed()
     return rec
-
-
-def _iterations(sim) -> dict | None:
-    """MuJoCo's solver iterations over the flex pile's steps (None for derods)."""
-    its = getattr(sim, "iterations", None)
-    if not its:
-        return None
-    cap = int(sim.model.opt.iterations)
-    return {"median": float(np.median(its)), "max": int(max(its)), "at_cap": int(sum(i >= cap for i in its)),
-            "cap": cap, "solver": mujoco.mjtSolver(sim.model.opt.solver).name.removeprefix("mjSOL_").lower()}
 
 
 def format_record(rec: dict) -> str:
