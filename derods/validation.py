@@ -57,7 +57,7 @@ def refuse(name: str, need: str, value, fix: str = "", kind=InvalidInputError):
     raise kind(f"{name} must be {need}, got {shown(value)}" + (f": {fix}" if fix else ""))
 
 
-def _is_real(value) -> bool:
+def is_real(value) -> bool:
     if isinstance(value, (bool, np.bool_)):
         return False
     if isinstance(value, np.ndarray):
@@ -78,7 +78,7 @@ def real(name: str, value, unit: str = "", *, gt=None, ge=None, lt=None, le=None
     """
     bounds = _bounds(gt, ge, lt, le)
     unit_txt = f" [{unit}]" if unit else ""
-    if not _is_real(value):
+    if not is_real(value):
         hint = f"pass a float such as {example!r}" if example is not None else "pass a float"
         refuse(name, "a finite number" + (f" {bounds}" if bounds else "") + unit_txt, value, hint, InvalidTypeError)
     v = float(value)
@@ -111,7 +111,7 @@ def integer(name: str, value, *, ge: int | None = None, le: int | None = None) -
     """``value`` as an int if it is a whole number within the bounds (2.0 is 2), else refuse it."""
     bounds = _bounds(None, ge, None, le)
     need = "an integer" + (f" {bounds}" if bounds else "")
-    if not _is_real(value):
+    if not is_real(value):
         refuse(name, need, value, "pass an int", InvalidTypeError)
     if not math.isfinite(float(value)) or int(value) != value:
         refuse(name, need, value, "pass a whole number")
@@ -160,7 +160,7 @@ def numeric_array(name: str, value) -> np.ndarray:
 def vector(name: str, value, n: int = 3, unit: str = "", *, nonzero: bool = False) -> np.ndarray:
     """``value`` as a finite float array of shape (n,)."""
     need = f"{n} finite numbers" + (f" [{unit}]" if unit else "") + (", not all zero" if nonzero else "")
-    if _is_real(value):
+    if is_real(value):
         refuse(name, need, value, f"pass a sequence of {n} floats", InvalidTypeError)
     arr = numeric_array(name, value)
     if arr.shape != (n,):
@@ -218,7 +218,7 @@ def points(name: str, x, closed: bool = False) -> np.ndarray:
 def rgba(name: str, value) -> tuple:
     """Four numbers in [0, 1] (red, green, blue, alpha), as a tuple of floats."""
     need, fix = "4 numbers in [0, 1] (red, green, blue, alpha)", "pass e.g. (0.9, 0.3, 0.15, 1.0)"
-    if _is_real(value):
+    if is_real(value):
         refuse(name, need, value, fix, InvalidTypeError)
     arr = numeric_array(name, value)
     if arr.shape != (4,) or not np.all((arr >= 0) & (arr <= 1)):
@@ -230,8 +230,6 @@ def rgba(name: str, value) -> tuple:
 
 #: Contact dimensionalities MuJoCo accepts: frictionless, sliding, + torsional, + rolling.
 CONDIMS = (1, 3, 4, 6)
-#: MuJoCo's integrators, by the name World's ``integrator`` takes.
-INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")
 
 
 def material(m) -> None:
@@ -246,7 +244,7 @@ def material(m) -> None:
     if m.shear is not None:
         real("shear", m.shear, "Pa", gt=0, example=3e6)
     else:
-        if not _is_real(m.poisson):
+        if not is_real(m.poisson):
             refuse("poisson", "a number in (-1, 0.5]", m.poisson, "pass a float such as 0.5", InvalidTypeError)
         if not -1.0 < m.poisson <= 0.5:
             raise InvalidInputError(f"poisson must be in (-1, 0.5], got {m.poisson!r}")
@@ -287,7 +285,7 @@ def rod_fields(rod) -> np.ndarray:
         raise InvalidInputError("TwistBoundary('ring') is for closed rods; pass closed=True")
     if rod.stretch_stiffness is not None:
         real("stretch_stiffness", rod.stretch_stiffness, "N", gt=0, example=1e3)
-    if _is_real(rod.rest_twist):
+    if is_real(rod.rest_twist):
         real("rest_twist", rod.rest_twist, "rad", example=0.0)
     else:
         tw = numeric_array("rest_twist", rod.rest_twist)
@@ -312,7 +310,7 @@ def rod_fields(rod) -> np.ndarray:
 def contact_params(c) -> None:
     """A :class:`~derods.ContactParams`: each value within what MuJoCo simulates as meant."""
     real("friction", c.friction, ge=0, example=1.0)
-    ref = vector("solref", c.solref, 2) if _is_real(c.solref) or np.size(c.solref) == 2 else None
+    ref = vector("solref", c.solref, 2) if is_real(c.solref) or np.size(c.solref) == 2 else None
     if ref is None:
         refuse("solref", "2 finite numbers (timeconst [s], dampratio)", c.solref, "pass e.g. (0.005, 1.0)")
     if not ((ref[0] > 0 and ref[1] > 0) or (ref[0] < 0 and ref[1] <= 0)):
@@ -337,83 +335,6 @@ def contact_params(c) -> None:
         boolean("speculative", c.speculative)
     real("margin", c.margin, "m", ge=0, example=0.0)
     integer("priority", c.priority)
-
-
-def world_options(scene, dt, gravity, mode, mass_damping, stiffness_damping, contact, integrator, strain_limit,
-                  scene_checks) -> None:
-    """World's arguments (the scene is read by :func:`derods.sim.inputs.scene_spec`)."""
-    import os
-
-    import mujoco
-
-    from .sim.contact_params import ContactParams
-    from .sim.inputs import MODES
-
-    if scene is not None and not isinstance(scene, (str, os.PathLike, mujoco.MjSpec)):
-        refuse("scene", "None, a path to an MJCF file or a mujoco.MjSpec", scene, "pass a path such as 'scene.xml'",
-               InvalidTypeError)
-    choice("mode", mode, MODES)
-    if dt is not None:
-        real("dt", dt, "s", gt=0, example=2e-3)
-    real("mass_damping", mass_damping, "1/s", ge=0, example=0.5)
-    real("stiffness_damping", stiffness_damping, "s", ge=0, example=1e-4)
-    if gravity is not None:
-        vector("gravity", gravity, 3, "m/s^2")
-    instance("contact", contact, ContactParams, "pass derods.ContactParams(...)")
-    if integrator is not None:
-        choice("integrator", integrator.lower() if isinstance(integrator, str) else integrator, INTEGRATORS)
-    if strain_limit is not None:
-        if not _is_real(strain_limit):
-            refuse("strain_limit", "a number > 0 (math.inf: off)", strain_limit, "pass a float such as 1e-3",
-                   InvalidTypeError)
-        if not strain_limit > 0:
-            raise InvalidInputError(f"strain_limit must be > 0 (math.inf: off), got {strain_limit!r}")
-    boolean("scene_checks", scene_checks)
-
-
-#: Names MuJoCo and derods' generated bodies can carry: a rod is a body and a flex of its
-#: name, its vertices bodies ``f"{name}_{i}"``.
-_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_.\-]*$")
-
-
-def rod_name(name, rods: dict, scene_names: set) -> str:
-    """A new rod's name: a plain identifier whose bodies (``name``, ``name_0`` ...) clash
-    with no rod's and no scene element's. rods: existing rod names -> vertex counts;
-    scene_names: the names of the scene's bodies and flexes."""
-    if not isinstance(name, str):
-        refuse("name", "a string", name, "pass e.g. 'rope'", InvalidTypeError)
-    if not _NAME.match(name):
-        refuse("name", "a name of letters, digits, '_', '.' or '-' starting with a letter or '_'", name,
-               "pass e.g. 'rope'")
-    if name in rods:
-        raise InvalidInputError(f"name: a rod named {name!r} exists already; pass another name")
-    m = re.match(r"^(.*)_(\d+)$", name)
-    if m and m.group(1) in rods and int(m.group(2)) < rods[m.group(1)]:
-        raise InvalidInputError(f"name {name!r} is the name of vertex {m.group(2)} of rod {m.group(1)!r} "
-                                "(its bodies are named rod_vertex); pass another name, such as "
-                                f"{m.group(1) + '-' + m.group(2)!r}")
-    for other in rods:
-        o = re.match(rf"^{re.escape(name)}_(\d+)$", other)
-        if o:
-            raise InvalidInputError(f"name {name!r} would name a vertex of this rod {other!r}, a rod of the world "
-                                    "(vertex bodies are named rod_vertex); pass another name")
-    if name in scene_names:
-        raise InvalidInputError(f"name {name!r} is taken by a body or flex of the scene; pass another name")
-    return name
-
-
-def rod_index(rod, names: list):
-    """A rod given as an index (int) or a name (str)."""
-    if isinstance(rod, str):
-        if rod not in names:
-            raise InvalidInputError(f"rod {rod!r} is not a rod of the world; rods: {names}")
-        return names.index(rod)
-    if not _is_real(rod) or int(rod) != rod:
-        refuse("rod", "a rod index (int) or name (str)", rod, f"rods: {names}", InvalidTypeError)
-    i = int(rod)
-    if not -len(names) <= i < len(names):
-        raise InvalidIndexError(f"rod index {i} out of range; the world has {len(names)} rods: {names}")
-    return i % len(names)
 
 
 def rod_state(rod, state, name: str = "state") -> None:

@@ -4,12 +4,16 @@ The time stepping modes a World knows (:data:`MODES`), the scene read into a
 ``mujoco.MjSpec`` with the options that override its own (:func:`scene_spec`), and
 each rod :meth:`derods.sim.world.World.add_rod` takes (:func:`rod_entry`): checked
 against what derods and MuJoCo can simulate, given the twist boundary its ends impose,
-and (in the projection mode) a vanishing stretch spring. The World's own arguments are
-checked by :func:`derods.validation.world_options`.
+and (in the projection mode) a vanishing stretch spring; and the World's own arguments
+(:func:`world_options`), a new rod's name (:func:`rod_name`) and a rod given by index or
+name (:func:`rod_index`). The checks' vocabulary (what a refusal says) is
+:mod:`derods.validation`'s.
 """
 
 from __future__ import annotations
 
+import os
+import re
 from dataclasses import replace
 
 import mujoco
@@ -18,12 +22,15 @@ import numpy as np
 from .. import validation
 from ..rod import Rod, check_turns
 from .clamps import twist_boundary
+from .contact_params import ContactParams
 from .layout import END_KINDS, RodEntry
 
 #: Time stepping modes of a World ("auto" picks "implicit" or "explicit").
 MODES = ("auto", "implicit", "alpha", "explicit", "projection")
 #: The lightest vertex [kg] a World accepts (MuJoCo refuses bodies below its mjMINVAL, 1e-15).
 MIN_VERTEX_MASS = 1e-12
+#: MuJoCo's integrators, by the name World's ``integrator`` takes.
+INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")
 
 
 def scene_spec(scene, integrator: str | None, dt: float | None, gravity) -> mujoco.MjSpec:
@@ -65,7 +72,7 @@ def rod_entry(spec: mujoco.MjSpec, entries: list[RodEntry], requested_mode: str,
                                            f"(n_vertices, 3)), got rest_x of shape {rod.rest_x.shape}")
     name = f"rod{len(entries)}" if name is None else name
     scene_names = {b.name for b in spec.bodies} | {f.name for f in spec.flexes}
-    validation.rod_name(name, {e.name: e.rod.n_vertices for e in entries}, scene_names)
+    rod_name(name, {e.name: e.rod.n_vertices for e in entries}, scene_names)
     rgba = validation.rgba("rgba", rgba)
     x0 = rod.rest_x if x is None else validation.numeric_array("x", x)
     if x0.shape != rod.rest_x.shape:
@@ -118,3 +125,75 @@ def _has_dofs(spec: mujoco.MjSpec, name: str) -> bool:
             return True
         body = body.parent
     return False
+
+
+def world_options(scene, dt, gravity, mode, mass_damping, stiffness_damping, contact, integrator, strain_limit,
+                  scene_checks) -> None:
+    """World's arguments (the scene is read by :func:`scene_spec`)."""
+    if scene is not None and not isinstance(scene, (str, os.PathLike, mujoco.MjSpec)):
+        validation.refuse("scene", "None, a path to an MJCF file or a mujoco.MjSpec", scene,
+                          "pass a path such as 'scene.xml'", validation.InvalidTypeError)
+    validation.choice("mode", mode, MODES)
+    if dt is not None:
+        validation.real("dt", dt, "s", gt=0, example=2e-3)
+    validation.real("mass_damping", mass_damping, "1/s", ge=0, example=0.5)
+    validation.real("stiffness_damping", stiffness_damping, "s", ge=0, example=1e-4)
+    if gravity is not None:
+        validation.vector("gravity", gravity, 3, "m/s^2")
+    validation.instance("contact", contact, ContactParams, "pass derods.ContactParams(...)")
+    if integrator is not None:
+        validation.choice("integrator", integrator.lower() if isinstance(integrator, str) else integrator,
+                          INTEGRATORS)
+    if strain_limit is not None:
+        if not validation.is_real(strain_limit):
+            validation.refuse("strain_limit", "a number > 0 (math.inf: off)", strain_limit,
+                              "pass a float such as 1e-3", validation.InvalidTypeError)
+        if not strain_limit > 0:
+            raise validation.InvalidInputError(f"strain_limit must be > 0 (math.inf: off), got {strain_limit!r}")
+    validation.boolean("scene_checks", scene_checks)
+
+
+#: Names MuJoCo and derods' generated bodies can carry: a rod is a body and a flex of its
+#: name, its vertices bodies ``f"{name}_{i}"``.
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_.\-]*$")
+
+
+def rod_name(name, rods: dict, scene_names: set) -> str:
+    """A new rod's name: a plain identifier whose bodies (``name``, ``name_0`` ...) clash
+    with no rod's and no scene element's. rods: existing rod names -> vertex counts;
+    scene_names: the names of the scene's bodies and flexes."""
+    if not isinstance(name, str):
+        validation.refuse("name", "a string", name, "pass e.g. 'rope'", validation.InvalidTypeError)
+    if not _NAME.match(name):
+        validation.refuse("name", "a name of letters, digits, '_', '.' or '-' starting with a letter or '_'", name,
+                          "pass e.g. 'rope'")
+    if name in rods:
+        raise validation.InvalidInputError(f"name: a rod named {name!r} exists already; pass another name")
+    m = re.match(r"^(.*)_(\d+)$", name)
+    if m and m.group(1) in rods and int(m.group(2)) < rods[m.group(1)]:
+        raise validation.InvalidInputError(f"name {name!r} is the name of vertex {m.group(2)} of rod {m.group(1)!r} "
+                                           "(its bodies are named rod_vertex); pass another name, such as "
+                                           f"{m.group(1) + '-' + m.group(2)!r}")
+    for other in rods:
+        o = re.match(rf"^{re.escape(name)}_(\d+)$", other)
+        if o:
+            raise validation.InvalidInputError(f"name {name!r} would name a vertex of this rod {other!r}, a rod of "
+                                               "the world (vertex bodies are named rod_vertex); pass another name")
+    if name in scene_names:
+        raise validation.InvalidInputError(f"name {name!r} is taken by a body or flex of the scene; pass another "
+                                           "name")
+    return name
+
+
+def rod_index(rod, names: list):
+    """A rod given as an index (int) or a name (str)."""
+    if isinstance(rod, str):
+        if rod not in names:
+            raise validation.InvalidInputError(f"rod {rod!r} is not a rod of the world; rods: {names}")
+        return names.index(rod)
+    if not validation.is_real(rod) or int(rod) != rod:
+        validation.refuse("rod", "a rod index (int) or name (str)", rod, f"rods: {names}", validation.InvalidTypeError)
+    i = int(rod)
+    if not -len(names) <= i < len(names):
+        raise validation.InvalidIndexError(f"rod index {i} out of range; the world has {len(names)} rods: {names}")
+    return i % len(names)

@@ -40,7 +40,7 @@ from ..rod import Rod, RodState, check_turns
 from . import compile_stage
 from .contact_params import ContactParams
 from .divergence import Diagnosis, Guard
-from .inputs import MIN_VERTEX_MASS, MODES, rod_entry, scene_spec
+from .inputs import MIN_VERTEX_MASS, MODES, rod_entry, rod_index, scene_spec, world_options
 from .explicit_limit import explicit_dt_limit
 from .layout import RodEntry
 from .scene_checks import stretched
@@ -97,7 +97,7 @@ class World:
                  mass_damping: float = 0.0, stiffness_damping: float = 0.0,
                  contact: ContactParams = ContactParams(), integrator: str | None = None,
                  strain_limit: float | None = None, scene_checks: bool = True, rods_from: str = "composite"):
-        validation.world_options(scene, dt, gravity, mode, mass_damping, stiffness_damping, contact, integrator,
+        world_options(scene, dt, gravity, mode, mass_damping, stiffness_damping, contact, integrator,
                                  strain_limit, scene_checks)
         mjcf_load.check_rods_from(scene, rods_from)
         declared = mjcf_load.Declared()
@@ -201,7 +201,7 @@ class World:
         return [e.name for e in self._entries]
 
     def _index(self, rod) -> int:
-        return validation.rod_index(rod, self.rod_names)
+        return rod_index(rod, self.rod_names)
 
     def positions(self, rod: int | str = 0) -> np.ndarray:
         """Vertex positions [m] of a rod, shape (n_vertices, 3)."""
